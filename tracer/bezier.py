@@ -1,0 +1,225 @@
+"""Leaf kernels on tensor-product Bezier patches.
+
+Control points of one patch live in a slot of a buffer `buf[slot, c, k]`
+(slot, coordinate 0..2, point k = j*(m+1) + i for P[i][j], i along u). That is
+structure of arrays per patch: each coordinate's points are contiguous.
+
+Every split halves the parameter interval with de Casteljau's midpoints
+`(a + b) * 0.5`: a convex combination, so boxes of the halves stay inside the
+parent's (up to rounding) and the halving by 2 is exact. Arithmetic happens in
+the buffer's dtype (float32 or float64): one source, two compilations.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def split_u(buf, src, dst, m, n):
+    """Halve the patch in slot `src` at u = 1/2: `src` keeps u in [0, 1/2], `dst` gets [1/2, 1].
+
+    buf: (slots, 3, points) float32/float64; m, n: degrees along u and v.
+    """
+    stride = m + 1
+    for c in range(3):
+        a = buf[src, c]
+        r = buf[dst, c]
+        for j in range(n + 1):
+            b = j * stride
+            r[b + m] = a[b + m]
+            for k in range(1, m + 1):
+                # After pass k, a[b+i] (i >= k) holds level-k point i-k; a[b+k] is final.
+                for i in range(m, k - 1, -1):
+                    a[b + i] = (a[b + i - 1] + a[b + i]) * 0.5
+                r[b + m - k] = a[b + m]
+
+
+@njit(cache=True, nogil=True)
+def split_v(buf, src, dst, m, n):
+    """Halve the patch in slot `src` at v = 1/2: `src` keeps v in [0, 1/2], `dst` gets [1/2, 1]."""
+    stride = m + 1
+    for c in range(3):
+        a = buf[src, c]
+        r = buf[dst, c]
+        for i in range(m + 1):
+            r[n * stride + i] = a[n * stride + i]
+            for k in range(1, n + 1):
+                for j in range(n, k - 1, -1):
+                    a[j * stride + i] = (a[(j - 1) * stride + i] + a[j * stride + i]) * 0.5
+                r[(n - k) * stride + i] = a[n * stride + i]
+
+
+@njit(cache=True, nogil=True)
+def split_u_cubic(buf, src, dst):
+    """split_u for bicubic patches, with constant trip counts the compiler unrolls."""
+    for c in range(3):
+        a = buf[src, c]
+        r = buf[dst, c]
+        for b in range(0, 16, 4):
+            p0 = a[b]
+            p1 = a[b + 1]
+            p2 = a[b + 2]
+            p3 = a[b + 3]
+            q0 = (p0 + p1) * 0.5
+            q1 = (p1 + p2) * 0.5
+            q2 = (p2 + p3) * 0.5
+            s0 = (q0 + q1) * 0.5
+            s1 = (q1 + q2) * 0.5
+            mid = (s0 + s1) * 0.5
+            a[b + 1] = q0
+            a[b + 2] = s0
+            a[b + 3] = mid
+            r[b] = mid
+            r[b + 1] = s1
+            r[b + 2] = q2
+            r[b + 3] = p3
+
+
+@njit(cache=True, nogil=True)
+def split_v_cubic(buf, src, dst):
+    """split_v for bicubic patches."""
+    for c in range(3):
+        a = buf[src, c]
+        r = buf[dst, c]
+        for i in range(4):
+            p0 = a[i]
+            p1 = a[4 + i]
+            p2 = a[8 + i]
+            p3 = a[12 + i]
+            q0 = (p0 + p1) * 0.5
+            q1 = (p1 + p2) * 0.5
+            q2 = (p2 + p3) * 0.5
+            s0 = (q0 + q1) * 0.5
+            s1 = (q1 + q2) * 0.5
+            mid = (s0 + s1) * 0.5
+            a[4 + i] = q0
+            a[8 + i] = s0
+            a[12 + i] = mid
+            r[i] = mid
+            r[4 + i] = s1
+            r[8 + i] = q2
+            r[12 + i] = p3
+
+
+@njit(cache=True, nogil=True)
+def control_box(buf, slot, count, box):
+    """Write the axis-aligned box of the first `count` control points of `slot` into box[slot].
+
+    box: (slots, 6) float64 as lo x, y, z, hi x, y, z; exact (min and max do not round).
+    """
+    for c in range(3):
+        a = buf[slot, c]
+        lo = a[0]
+        hi = a[0]
+        for k in range(1, count):
+            v = a[k]
+            lo = min(lo, v)
+            hi = max(hi, v)
+        box[slot, c] = lo
+        box[slot, 3 + c] = hi
+
+
+@njit(cache=True, nogil=True)
+def _bernstein_row(deg, t, out):
+    """Bernstein polynomials B_i^deg(t), i = 0..deg, by the stable triangular recurrence."""
+    out[0] = 1.0
+    s = 1.0 - t
+    for k in range(1, deg + 1):
+        saved = 0.0
+        for i in range(k):
+            tmp = out[i]
+            out[i] = saved + s * tmp
+            saved = t * tmp
+        out[k] = saved
+
+
+@njit(cache=True, nogil=True)
+def evaluate(pts, m, n, u, v, scratch, out):
+    """Point and derivatives of one patch at (u, v), in float64.
+
+    pts: (3, points) control points (any float dtype); scratch: (4, >= max degree + 1)
+    float64; out: (4, 3) float64 receives S, dS/du, dS/dv and d2S/dudv.
+    """
+    bu = scratch[0]
+    bv = scratch[1]
+    du = scratch[2]
+    dv = scratch[3]
+    _bernstein_row(m, u, bu)
+    _bernstein_row(n, v, bv)
+    if m > 0:
+        _bernstein_row(m - 1, u, du)
+    if n > 0:
+        _bernstein_row(n - 1, v, dv)
+    stride = m + 1
+    for r in range(4):
+        for c in range(3):
+            out[r, c] = 0.0
+    for c in range(3):
+        a = pts[c]
+        s = 0.0
+        for j in range(n + 1):
+            for i in range(m + 1):
+                s += bu[i] * bv[j] * a[j * stride + i]
+        out[0, c] = s
+        su = 0.0
+        for j in range(n + 1):
+            for i in range(m):
+                su += du[i] * bv[j] * (a[j * stride + i + 1] - a[j * stride + i])
+        out[1, c] = m * su
+        sv = 0.0
+        for j in range(n):
+            for i in range(m + 1):
+                sv += bu[i] * dv[j] * (a[(j + 1) * stride + i] - a[j * stride + i])
+        out[2, c] = n * sv
+        suv = 0.0
+        for j in range(n):
+            for i in range(m):
+                diff = (a[(j + 1) * stride + i + 1] - a[(j + 1) * stride + i]
+                        - a[j * stride + i + 1] + a[j * stride + i])
+                suv += du[i] * dv[j] * diff
+        out[3, c] = m * n * suv
+
+
+@njit(cache=True, nogil=True)
+def normal_at(pts, m, n, u, v, scratch, d, out):
+    """Unit normal dS/du x dS/dv at (u, v) into out (3,), float64.
+
+    Where a derivative vanishes (a patch edge collapsed to a point, as on the
+    teapot's lid and bottom) the normal is the limit from inside the patch: the
+    vanishing dS/du is replaced by the mixed derivative, signed toward the
+    interior. scratch: as for `evaluate`; d: (6, 3) float64 work space.
+    Returns False if no normal could be found (a fully degenerate patch).
+    """
+    evaluate(pts, m, n, u, v, scratch, d)
+    su = d[4]
+    sv = d[5]
+    for c in range(3):
+        su[c] = d[1, c]
+        sv[c] = d[2, c]
+    nu = np.sqrt(su[0] * su[0] + su[1] * su[1] + su[2] * su[2])
+    nv = np.sqrt(sv[0] * sv[0] + sv[1] * sv[1] + sv[2] * sv[2])
+    mixed = np.sqrt(d[3, 0] ** 2 + d[3, 1] ** 2 + d[3, 2] ** 2)
+    scale = max(nu, nv, mixed)
+    if scale == 0.0:
+        return False
+    tiny = 1e-7 * scale
+    if nu < tiny:
+        # S_u(u, v) ~ (v - v_edge) * S_uv near a collapsed v-edge.
+        sign = 1.0 if v < 0.5 else -1.0
+        for c in range(3):
+            su[c] = sign * d[3, c]
+    if nv < tiny:
+        sign = 1.0 if u < 0.5 else -1.0
+        for c in range(3):
+            sv[c] = sign * d[3, c]
+    cx = su[1] * sv[2] - su[2] * sv[1]
+    cy = su[2] * sv[0] - su[0] * sv[2]
+    cz = su[0] * sv[1] - su[1] * sv[0]
+    length = np.sqrt(cx * cx + cy * cy + cz * cz)
+    if not length > 0.0:
+        return False
+    out[0] = cx / length
+    out[1] = cy / length
+    out[2] = cz / length
+    return True

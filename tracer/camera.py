@@ -1,0 +1,74 @@
+"""Pinhole camera and primary rays."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import PRECISION_DTYPE
+
+
+@dataclass(frozen=True)
+class View:
+    """A pinhole camera: eye, target, up vector and vertical field of view in degrees."""
+
+    eye: tuple
+    look_at: tuple
+    up: tuple = (0.0, 0.0, 1.0)
+    fov_deg: float = 35.0
+
+    def basis(self):
+        """Unit forward, right and up vectors (right-handed, image rows run down)."""
+        eye = np.asarray(self.eye, float)
+        forward = np.asarray(self.look_at, float) - eye
+        if not np.linalg.norm(forward) > 0:
+            raise ValueError("camera: eye and look_at coincide")
+        forward /= np.linalg.norm(forward)
+        right = np.cross(forward, np.asarray(self.up, float))
+        if not np.linalg.norm(right) > 1e-12:
+            raise ValueError("camera: up is parallel to the viewing direction")
+        right /= np.linalg.norm(right)
+        up = np.cross(right, forward)
+        return forward, right, up
+
+    def pixel_angle(self, height: int) -> float:
+        """Size of one pixel at unit distance along the view direction."""
+        return 2.0 * math.tan(math.radians(self.fov_deg) / 2.0) / height
+
+
+def view_of(scene) -> View:
+    """The scene's camera, or one framing the scene's control points from the front-right."""
+    if scene.camera is not None:
+        c = scene.camera
+        return View(tuple(map(float, c.eye)), tuple(map(float, c.look_at)), tuple(map(float, c.up)),
+                    float(c.fov_deg))
+    return framing_view(*scene.bounds())
+
+
+def framing_view(lo, hi, fov_deg: float = 35.0, direction=(0.55, -0.8, 0.45), up=(0.0, 0.0, 1.0)) -> View:
+    """A view of the box [lo, hi] that fits its bounding sphere in the field of view."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    centre = 0.5 * (lo + hi)
+    radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-9)
+    distance = radius / math.sin(math.radians(fov_deg) / 2.0)
+    d = np.asarray(direction, float)
+    eye = centre + d / np.linalg.norm(d) * distance
+    return View(tuple(eye), tuple(centre), tuple(up), fov_deg)
+
+
+def primary_rays(view: View, width: int, height: int, precision: str = "f32"):
+    """Origins and directions (height, width, 3) through pixel centres, row 0 at the top.
+
+    Computed in float64, rounded to the working precision and widened again, so the
+    arrays hold exactly the rays the kernel traces. Directions are not unit length.
+    """
+    dtype = PRECISION_DTYPE[precision]
+    forward, right, up = view.basis()
+    half = math.tan(math.radians(view.fov_deg) / 2.0)
+    xs = ((np.arange(width) + 0.5) * 2.0 / width - 1.0) * half * width / height
+    ys = (1.0 - (np.arange(height) + 0.5) * 2.0 / height) * half
+    dirs = forward + xs[None, :, None] * right + ys[:, None, None] * up
+    dirs = dirs.astype(dtype).astype(np.float64)
+    origins = np.broadcast_to(np.asarray(view.eye, float).astype(dtype).astype(np.float64), dirs.shape)
+    return np.ascontiguousarray(origins), np.ascontiguousarray(dirs)

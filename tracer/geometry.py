@@ -1,0 +1,111 @@
+"""Scene patches in the layout the kernels read: flat arrays in the working precision.
+
+Control points are stored relative to one frame origin per object (the centre
+of its control-point box): de Casteljau midpoints then round relative to the
+object's own extent instead of its distance from the world origin, and the
+patches of one object share a frame, so points on a common edge stay
+bit-identical and no crack can open between them.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .bvh import Bvh, build_bvh
+from .intersect import max_depth_for
+
+PRECISION_DTYPE = {"f32": np.float32, "f64": np.float64}
+PRECISION_BITS = {"f32": 24, "f64": 53}
+
+
+@dataclass(frozen=True)
+class Geometry:
+    precision: str
+    ctrl: np.ndarray      # (3, total points) working dtype, local to the patch's frame
+    pstart: np.ndarray    # (n_patches + 1,) int64
+    deg_u: np.ndarray     # (n_patches,) int32
+    deg_v: np.ndarray     # (n_patches,) int32
+    frame: np.ndarray     # (n_patches, 3) float64 frame origin of each patch
+    patch_box: np.ndarray # (n_patches, 6) float64 tight world boxes (one quad split, padded)
+    bvh: Bvh
+
+    @property
+    def n_patches(self) -> int:
+        return len(self.deg_u)
+
+    @property
+    def max_points(self) -> int:
+        return int(np.max(np.diff(self.pstart)))
+
+    @property
+    def bits(self) -> int:
+        return PRECISION_BITS[self.precision]
+
+    @property
+    def max_depth(self) -> int:
+        return max_depth_for(self.bits)
+
+    def patch_points(self, p: int) -> np.ndarray:
+        """World control points of patch p as stored (working precision widened), (count, 3)."""
+        a, b = self.pstart[p], self.pstart[p + 1]
+        return self.ctrl[:, a:b].T.astype(np.float64) + self.frame[p]
+
+
+def halve(grid: np.ndarray, axis: int):
+    """de Casteljau at 1/2 of a control grid along `axis`; returns both halves (float64)."""
+    g = np.moveaxis(np.asarray(grid, np.float64), axis, 0)
+    left, right = [g[0]], [g[-1]]
+    level = g
+    while len(level) > 1:
+        level = 0.5 * (level[:-1] + level[1:])
+        left.append(level[0])
+        right.append(level[-1])
+    return np.moveaxis(np.stack(left), 0, axis), np.moveaxis(np.stack(right[::-1]), 0, axis)
+
+
+def tight_box(grid: np.ndarray) -> np.ndarray:
+    """Union of the control boxes of the four quarter patches (Lischinski & Gonczarowski 3.1).
+
+    grid: (n+1, m+1, 3) indexed [j, i]. Returns lo xyz, hi xyz.
+    """
+    quarters = [q for half in halve(grid, 1) for q in halve(half, 0)]
+    pts = np.concatenate([q.reshape(-1, 3) for q in quarters])
+    return np.concatenate([pts.min(axis=0), pts.max(axis=0)])
+
+
+def prepare(scene, precision: str = "f32") -> Geometry:
+    """Kernel arrays for a loaded scene (tracer.scene.Scene) in the given precision."""
+    if precision not in PRECISION_DTYPE:
+        raise ValueError(f"precision must be one of {', '.join(PRECISION_DTYPE)}, got {precision!r}")
+    if scene.n_patches == 0:
+        raise ValueError(f"{scene.path or 'scene'}: no patches to render")
+    if np.any(scene.rational):
+        first = int(np.argmax(scene.rational))
+        raise ValueError(f"{scene.path or 'scene'}: patch {first} is rational; this tracer build "
+                         "intersects integral Bezier patches only")
+    dtype = PRECISION_DTYPE[precision]
+    bits = PRECISION_BITS[precision]
+    xyz = scene.points[:, :3]
+    frame = np.zeros((scene.n_patches, 3))
+    for obj in scene.objects:
+        sl = slice(obj.first_patch, obj.first_patch + obj.patch_count)
+        pts = xyz[scene.point_start[obj.first_patch]:scene.point_start[obj.first_patch + obj.patch_count]]
+        # Round the frame origin to float32 so origin + local stays cheap to form exactly.
+        frame[sl] = np.float32(0.5 * (pts.min(axis=0) + pts.max(axis=0)))
+    patch_of_point = np.repeat(np.arange(scene.n_patches), np.diff(scene.point_start))
+    ctrl = np.ascontiguousarray((xyz - frame[patch_of_point]).T.astype(dtype))
+    boxes = np.zeros((scene.n_patches, 6))
+    local = ctrl.astype(np.float64)
+    for p in range(scene.n_patches):
+        a, b = scene.point_start[p], scene.point_start[p + 1]
+        m, n = int(scene.degree_u[p]), int(scene.degree_v[p])
+        grid = local[:, a:b].T.reshape(n + 1, m + 1, 3)
+        box = tight_box(grid)
+        # The kernel's rounded midpoints may stray a few ulps outside the exact quarter boxes.
+        pad = np.abs(grid).max() * 2.0 ** (4 - bits) + np.finfo(np.float64).tiny
+        boxes[p, :3] = box[:3] - pad + frame[p]
+        boxes[p, 3:] = box[3:] + pad + frame[p]
+    return Geometry(precision, ctrl, np.asarray(scene.point_start, np.int64),
+                    np.asarray(scene.degree_u, np.int32), np.asarray(scene.degree_v, np.int32),
+                    frame, boxes, build_bvh(boxes))

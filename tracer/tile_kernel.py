@@ -1,0 +1,84 @@
+"""The per-tile kernel: primary rays of one image rectangle, writing per-pixel channels.
+
+Called from worker threads (it releases the GIL), one call per tile; all
+scratch is allocated per call so threads share nothing but the output arrays,
+of which each tile writes only its own rectangle.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .intersect import (H_DU, H_DV, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN,
+                        hit_normal, make_ray, trace_ray)
+
+
+@njit(cache=True, nogil=True)
+def render_tile(y0, y1, x0, x1, origins, dirs,
+                ctrl, pstart, deg_u, deg_v, frame, node_box, node_child, node_patch,
+                criterion, param, split_mode, max_depth, bits, detail_slope, max_points, stack_nodes,
+                out_hit, out_t, out_pos, out_lo, out_hi, out_normal, out_uv, out_patch, out_effort):
+    """Trace pixels [y0, y1) x [x0, x1). origins/dirs: (H, W, 3) float64 rays as traced.
+
+    detail_slope: threshold of detail per unit distance (adaptive criterion; 0 otherwise).
+    Outputs follow the per-pixel contract (see render.Frame).
+    """
+    slots = max_depth + 2
+    buf = np.zeros((slots, 3, max_points), ctrl.dtype)
+    box = np.zeros((slots, 6))
+    mf = np.zeros((slots, 8))
+    mi = np.zeros((slots, 4), np.int32)
+    order = np.arange(slots).astype(np.int32)
+    node_stack = np.zeros(stack_nodes, np.int32)
+    node_tin = np.zeros(stack_nodes)
+    ray = np.zeros(RAY_LEN)
+    hit = np.zeros(HIT_LEN)
+    pts = np.zeros((3, max_points))
+    scratch = np.zeros((4, max_points))
+    work = np.zeros((6, 3))
+    normal = np.zeros(3)
+    for y in range(y0, y1):
+        for x in range(x0, x1):
+            dx = dirs[y, x, 0]
+            dy = dirs[y, x, 1]
+            dz = dirs[y, x, 2]
+            length = math.sqrt(dx * dx + dy * dy + dz * dz)
+            make_ray(ray, origins[y, x, 0], origins[y, x, 1], origins[y, x, 2], dx, dy, dz,
+                     0.0, 0.0, detail_slope * length)
+            hit[H_TIN] = math.inf
+            out_effort[y, x] = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, frame,
+                                         node_box, node_child, node_patch,
+                                         criterion, param, split_mode, max_depth, bits,
+                                         buf, box, mf, mi, order, node_stack, node_tin, None)
+            if hit[H_TIN] == math.inf:
+                out_hit[y, x] = False
+                out_t[y, x] = math.inf
+                out_patch[y, x] = -1
+                for c in range(3):
+                    out_pos[y, x, c] = math.nan
+                    out_lo[y, x, c] = math.nan
+                    out_hi[y, x, c] = math.nan
+                    out_normal[y, x, c] = 0.0
+                out_uv[y, x, 0] = math.nan
+                out_uv[y, x, 1] = math.nan
+                continue
+            out_hit[y, x] = True
+            out_patch[y, x] = int(hit[H_PATCH])
+            along = 0.0
+            for c in range(3):
+                lo = hit[H_LO + c]
+                hi = hit[H_HI + c]
+                centre = 0.5 * (lo + hi)
+                out_lo[y, x, c] = lo
+                out_hi[y, x, c] = hi
+                out_pos[y, x, c] = centre
+                along += (centre - ray[c]) * ray[3 + c]
+            # t of the ray point nearest the box centre, kept inside the box's slab interval.
+            out_t[y, x] = min(max(along / (length * length), hit[H_TIN]), hit[H_TOUT])
+            out_uv[y, x, 0] = hit[H_U]
+            out_uv[y, x, 1] = hit[H_V]
+            hit_normal(hit, ctrl, pstart, deg_u, deg_v, ray, pts, scratch, work, normal)
+            for c in range(3):
+                out_normal[y, x, c] = normal[c]
