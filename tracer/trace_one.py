@@ -1,0 +1,122 @@
+"""One pixel's subdivision trace: every box the search computed, with what became of it.
+
+The same kernel as the renderer runs with trace arrays attached (numba
+compiles that variant separately, so the renderer pays nothing for it).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .camera import View, primary_rays, view_of
+from .geometry import Geometry, prepare
+from .intersect import (EVENT_NAMES, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN,
+                        TRACE_F, TRACE_I, hit_normal, make_ray, scratch_for, trace_ray)
+from .options import Options
+from .render import kernel_args
+
+TRACE_CAPACITY = 1 << 20
+
+
+@dataclass
+class PixelTrace:
+    """A traced pixel: the hit (if any) and the steps of the subdivision search."""
+
+    pixel: tuple
+    hit: bool
+    patch: int
+    t: float
+    position: np.ndarray
+    box_min: np.ndarray
+    box_max: np.ndarray
+    normal: np.ndarray
+    uv: np.ndarray
+    effort: int
+    steps_f: np.ndarray  # (k, 11): u0 u1 v0 v1, box lo xyz, box hi xyz, L1 diameter
+    steps_i: np.ndarray  # (k, 3): patch, depth, event code
+    truncated: bool = False
+
+    @property
+    def diameters(self) -> np.ndarray:
+        return self.steps_f[:, 10]
+
+    @property
+    def events(self) -> list:
+        return [EVENT_NAMES[e] for e in self.steps_i[:, 2]]
+
+    def hit_step(self) -> int:
+        """Index of the step that produced the reported hit box (the last 'hit' event), or -1."""
+        idx = np.nonzero(self.steps_i[:, 2] == 3)[0]
+        return int(idx[-1]) if len(idx) else -1
+
+    def to_json(self) -> dict:
+        """The contract's trace object (scene-format.md), with a summary added."""
+        def vec(a):
+            return [float(x) for x in a]
+
+        steps = [{"patch": int(i[0]), "depth": int(i[1]), "u": vec(f[0:2]), "v": vec(f[2:4]),
+                  "box_min": vec(f[4:7]), "box_max": vec(f[7:10]), "diameter": float(f[10]),
+                  "event": EVENT_NAMES[i[2]]} for f, i in zip(self.steps_f, self.steps_i)]
+        counts = {name: int(np.sum(self.steps_i[:, 2] == k)) for k, name in enumerate(EVENT_NAMES)}
+        out = {"pixel": [int(self.pixel[0]), int(self.pixel[1])], "hit": bool(self.hit),
+               "patch": int(self.patch), "t": float(self.t) if self.hit else None,
+               "position": vec(self.position) if self.hit else None,
+               "box_min": vec(self.box_min) if self.hit else None,
+               "box_max": vec(self.box_max) if self.hit else None,
+               "normal": vec(self.normal) if self.hit else None,
+               "uv": vec(self.uv) if self.hit else None,
+               "effort": int(self.effort), "hit_step": self.hit_step(),
+               "summary": {"boxes": len(steps), "events": counts,
+                           "max_depth": int(self.steps_i[:, 1].max()) if len(steps) else 0,
+                           "truncated": bool(self.truncated)},
+               "steps": steps}
+        return out
+
+
+def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angle: float,
+                    pixel=(0, 0), capacity: int = TRACE_CAPACITY) -> PixelTrace:
+    """Trace one ray with step recording; same kernel and options as the renderer."""
+    (ctrl, pstart, deg_u, deg_v, frame, node_box, node_child, node_patch, criterion, param, split_mode,
+     max_depth, bits, slope, max_points, stack_nodes) = kernel_args(geom, opts, pixel_angle)
+    buf, box, mf, mi, order, node_stack, node_tin = scratch_for(max_points, max_depth, ctrl.dtype)
+    node_stack = np.zeros(max(stack_nodes, 128), np.int32)
+    node_tin = np.zeros(len(node_stack))
+    trace = (np.zeros((capacity, TRACE_F)), np.zeros((capacity, TRACE_I), np.int32), np.zeros(2, np.int64))
+    o = np.asarray(origin, np.float64)
+    d = np.asarray(direction, np.float64)
+    length = math.sqrt(float(d @ d))
+    ray = np.zeros(RAY_LEN)
+    hit = np.zeros(HIT_LEN)
+    make_ray(ray, o[0], o[1], o[2], d[0], d[1], d[2], 0.0, 0.0, slope * length)
+    hit[H_TIN] = math.inf
+    effort = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, frame, node_box, node_child, node_patch,
+                       criterion, param, split_mode, max_depth, bits,
+                       buf, box, mf, mi, order, node_stack, node_tin, trace)
+    k = int(trace[2][0])
+    found = hit[H_TIN] < math.inf
+    lo = hit[H_LO:H_LO + 3].copy()
+    hi = hit[H_HI:H_HI + 3].copy()
+    centre = 0.5 * (lo + hi)
+    normal = np.zeros(3)
+    t = math.inf
+    if found:
+        pts = np.zeros((3, max_points))
+        hit_normal(hit, ctrl, pstart, deg_u, deg_v, ray, pts, np.zeros((4, max_points)), np.zeros((6, 3)), normal)
+        t = min(max(float((centre - o) @ d) / (length * length), hit[H_TIN]), hit[H_TOUT])
+    return PixelTrace(tuple(pixel), found, int(hit[H_PATCH]) if found else -1, t, centre, lo, hi, normal,
+                      np.array([hit[H_U], hit[H_V]]), int(effort), trace[0][:k].copy(), trace[1][:k].copy(),
+                      bool(trace[2][1]))
+
+
+def trace_pixel(scene, opts: Options, x: int, y: int, *, size=None, view: View | None = None,
+                geometry: Geometry | None = None) -> PixelTrace:
+    """Trace pixel (x = column, y = row from the top) of the scene's view, as `render` would."""
+    width, height = size or scene.image_size or (512, 512)
+    if not (0 <= x < width and 0 <= y < height):
+        raise ValueError(f"pixel {x},{y} is outside the {width}x{height} image")
+    view = view or view_of(scene)
+    geom = geometry if geometry is not None else prepare(scene, opts.precision)
+    origins, dirs = primary_rays(view, width, height, opts.precision)
+    return trace_ray_steps(geom, opts, origins[y, x], dirs[y, x], view.pixel_angle(height), (x, y))
