@@ -5,7 +5,7 @@ Control points of one patch live in a slot of a buffer `buf[slot, c, k]`
 structure of arrays per patch: each coordinate's points are contiguous.
 
 Every split halves the parameter interval with de Casteljau's midpoints
-`(a + b) * 0.5`: a convex combination, so boxes of the halves stay inside the
+`(a + b) * HALF` (HALF a float32 one half, so float32 stays float32): a convex combination, so boxes of the halves stay inside the
 parent's (up to rounding) and the halving by 2 is exact. Arithmetic happens in
 the buffer's dtype (float32 or float64): one source, two compilations.
 """
@@ -14,8 +14,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+# float32 so float32 midpoints stay float32 (no widening round trip); exact in float64 too.
+HALF = np.float32(0.5)
 
-@njit(cache=True, nogil=True)
+
+@njit(cache=True, nogil=True, inline='always')
 def split_u(buf, src, dst, m, n):
     """Halve the patch in slot `src` at u = 1/2: `src` keeps u in [0, 1/2], `dst` gets [1/2, 1].
 
@@ -31,11 +34,11 @@ def split_u(buf, src, dst, m, n):
             for k in range(1, m + 1):
                 # After pass k, a[b+i] (i >= k) holds level-k point i-k; a[b+k] is final.
                 for i in range(m, k - 1, -1):
-                    a[b + i] = (a[b + i - 1] + a[b + i]) * 0.5
+                    a[b + i] = (a[b + i - 1] + a[b + i]) * HALF
                 r[b + m - k] = a[b + m]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def split_v(buf, src, dst, m, n):
     """Halve the patch in slot `src` at v = 1/2: `src` keeps v in [0, 1/2], `dst` gets [1/2, 1]."""
     stride = m + 1
@@ -46,11 +49,11 @@ def split_v(buf, src, dst, m, n):
             r[n * stride + i] = a[n * stride + i]
             for k in range(1, n + 1):
                 for j in range(n, k - 1, -1):
-                    a[j * stride + i] = (a[(j - 1) * stride + i] + a[j * stride + i]) * 0.5
+                    a[j * stride + i] = (a[(j - 1) * stride + i] + a[j * stride + i]) * HALF
                 r[(n - k) * stride + i] = a[n * stride + i]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def split_u_cubic(buf, src, dst):
     """split_u for bicubic patches, with constant trip counts the compiler unrolls."""
     for c in range(3):
@@ -61,12 +64,12 @@ def split_u_cubic(buf, src, dst):
             p1 = a[b + 1]
             p2 = a[b + 2]
             p3 = a[b + 3]
-            q0 = (p0 + p1) * 0.5
-            q1 = (p1 + p2) * 0.5
-            q2 = (p2 + p3) * 0.5
-            s0 = (q0 + q1) * 0.5
-            s1 = (q1 + q2) * 0.5
-            mid = (s0 + s1) * 0.5
+            q0 = (p0 + p1) * HALF
+            q1 = (p1 + p2) * HALF
+            q2 = (p2 + p3) * HALF
+            s0 = (q0 + q1) * HALF
+            s1 = (q1 + q2) * HALF
+            mid = (s0 + s1) * HALF
             a[b + 1] = q0
             a[b + 2] = s0
             a[b + 3] = mid
@@ -76,7 +79,7 @@ def split_u_cubic(buf, src, dst):
             r[b + 3] = p3
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def split_v_cubic(buf, src, dst):
     """split_v for bicubic patches."""
     for c in range(3):
@@ -87,12 +90,12 @@ def split_v_cubic(buf, src, dst):
             p1 = a[4 + i]
             p2 = a[8 + i]
             p3 = a[12 + i]
-            q0 = (p0 + p1) * 0.5
-            q1 = (p1 + p2) * 0.5
-            q2 = (p2 + p3) * 0.5
-            s0 = (q0 + q1) * 0.5
-            s1 = (q1 + q2) * 0.5
-            mid = (s0 + s1) * 0.5
+            q0 = (p0 + p1) * HALF
+            q1 = (p1 + p2) * HALF
+            q2 = (p2 + p3) * HALF
+            s0 = (q0 + q1) * HALF
+            s1 = (q1 + q2) * HALF
+            mid = (s0 + s1) * HALF
             a[4 + i] = q0
             a[8 + i] = s0
             a[12 + i] = mid
@@ -102,7 +105,7 @@ def split_v_cubic(buf, src, dst):
             r[12 + i] = p3
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def control_box(buf, slot, count, box):
     """Write the axis-aligned box of the first `count` control points of `slot` into box[slot].
 
@@ -113,6 +116,21 @@ def control_box(buf, slot, count, box):
         lo = a[0]
         hi = a[0]
         for k in range(1, count):
+            v = a[k]
+            lo = min(lo, v)
+            hi = max(hi, v)
+        box[slot, c] = lo
+        box[slot, 3 + c] = hi
+
+
+@njit(cache=True, nogil=True, inline='always')
+def control_box_cubic(buf, slot, box):
+    """control_box for the 16 points of a bicubic patch."""
+    for c in range(3):
+        a = buf[slot, c]
+        lo = a[0]
+        hi = a[0]
+        for k in range(1, 16):
             v = a[k]
             lo = min(lo, v)
             hi = max(hi, v)

@@ -24,7 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .bezier import control_box, normal_at, split_u, split_u_cubic, split_v, split_v_cubic
+from .bezier import control_box, control_box_cubic, normal_at, split_u, split_u_cubic, split_v, split_v_cubic
 
 # Termination criteria and split heuristics (codes as in options.CRITERION_CODE / SPLIT_CODE).
 FLOAT, FIXED, ADAPTIVE, MANTISSA = 0, 1, 2, 3
@@ -69,7 +69,7 @@ def make_ray(ray, ox, oy, oz, dx, dy, dz, t_min, t0, dt):
     ray[R_DT] = dt
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def slab(bx, fx, fy, fz, ray):
     """Ray against the box bx (lo xyz, hi xyz) shifted by (fx, fy, fz); float64 throughout.
 
@@ -100,13 +100,13 @@ def slab(bx, fx, fy, fz, ray):
     return t_in <= t_out, t_in, t_out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _l1(box, s):
     """L1 diameter of box[s]; rounded in float64 (box corners are exact widenings)."""
     return (box[s, 3] - box[s, 0]) + (box[s, 4] - box[s, 1]) + (box[s, 5] - box[s, 2])
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _within_ulps(box, s, fx, fy, fz, ulps, bits):
     """Are the box's world corners within `ulps` units in the last place (of `bits`-bit floats)?"""
     for c in range(3):
@@ -122,7 +122,7 @@ def _within_ulps(box, s, fx, fy, fz, ulps, bits):
     return True
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _split_direction(buf, s, m, n, count, ray, split_mode):
     """0 to halve u, 1 to halve v: the longer parameter direction ('length'), or the one
     whose edges are least parallel to the ray ('cross', Dammertz 2.5.2).
@@ -155,7 +155,7 @@ def _split_direction(buf, s, m, n, count, ray, split_mode):
     return 0 if lu > lv else 1
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _record(trace, p, depth, mf, box, s, fx, fy, fz, d, event):
     """Append one box to the trace; returns its step index (-1 when the trace is full)."""
     tf, ti, tn = trace
@@ -179,16 +179,19 @@ def _record(trace, p, depth, mf, box, s, fx, fy, fz, d, event):
     return k
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _set_event(trace, step, event):
     if step >= 0:
         trace[1][step, 2] = event
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _open_child(buf, box, mf, mi, s, count, fx, fy, fz, ray, best_t, p, trace):
     """Box of a fresh sub-patch in slot s, tested against the ray; returns 1 if it stays a candidate."""
-    control_box(buf, s, count, box)
+    if count == 16:
+        control_box_cubic(buf, s, box)
+    else:
+        control_box(buf, s, count, box)
     mf[s, M_D] = _l1(box, s)
     ok, t_in, t_out = slab(box[s], fx, fy, fz, ray)
     mf[s, M_TIN] = t_in
