@@ -54,11 +54,16 @@ def split_v(buf, src, dst, m, n):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def split_u_cubic(buf, src, dst):
-    """split_u for bicubic patches, with constant trip counts the compiler unrolls."""
+def split_u_cubic(buf, src, dst, box):
+    """split_u for bicubic patches, also writing both halves' control boxes into box[src], box[dst].
+
+    Constant trip counts let the compiler unroll; boxes come from the fresh points in registers.
+    """
     for c in range(3):
         a = buf[src, c]
         r = buf[dst, c]
+        llo = lhi = a[0]  # P[0][0] stays in the left half, P[3][0] in the right
+        rlo = rhi = a[3]
         for b in range(0, 16, 4):
             p0 = a[b]
             p1 = a[b + 1]
@@ -77,14 +82,24 @@ def split_u_cubic(buf, src, dst):
             r[b + 1] = s1
             r[b + 2] = q2
             r[b + 3] = p3
+            llo = min(llo, p0, q0, s0, mid)
+            lhi = max(lhi, p0, q0, s0, mid)
+            rlo = min(rlo, mid, s1, q2, p3)
+            rhi = max(rhi, mid, s1, q2, p3)
+        box[src, c] = llo
+        box[src, 3 + c] = lhi
+        box[dst, c] = rlo
+        box[dst, 3 + c] = rhi
 
 
 @njit(cache=True, nogil=True, inline='always')
-def split_v_cubic(buf, src, dst):
-    """split_v for bicubic patches."""
+def split_v_cubic(buf, src, dst, box):
+    """split_v for bicubic patches, with both halves' boxes (see split_u_cubic)."""
     for c in range(3):
         a = buf[src, c]
         r = buf[dst, c]
+        llo = lhi = a[0]  # P[0][0] stays in the lower half, P[0][3] in the upper
+        rlo = rhi = a[12]
         for i in range(4):
             p0 = a[i]
             p1 = a[4 + i]
@@ -103,6 +118,14 @@ def split_v_cubic(buf, src, dst):
             r[4 + i] = s1
             r[8 + i] = q2
             r[12 + i] = p3
+            llo = min(llo, p0, q0, s0, mid)
+            lhi = max(lhi, p0, q0, s0, mid)
+            rlo = min(rlo, mid, s1, q2, p3)
+            rhi = max(rhi, mid, s1, q2, p3)
+        box[src, c] = llo
+        box[src, 3 + c] = lhi
+        box[dst, c] = rlo
+        box[dst, 3 + c] = rhi
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -116,21 +139,6 @@ def control_box(buf, slot, count, box):
         lo = a[0]
         hi = a[0]
         for k in range(1, count):
-            v = a[k]
-            lo = min(lo, v)
-            hi = max(hi, v)
-        box[slot, c] = lo
-        box[slot, 3 + c] = hi
-
-
-@njit(cache=True, nogil=True, inline='always')
-def control_box_cubic(buf, slot, box):
-    """control_box for the 16 points of a bicubic patch."""
-    for c in range(3):
-        a = buf[slot, c]
-        lo = a[0]
-        hi = a[0]
-        for k in range(1, 16):
             v = a[k]
             lo = min(lo, v)
             hi = max(hi, v)

@@ -24,7 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .bezier import control_box, control_box_cubic, normal_at, split_u, split_u_cubic, split_v, split_v_cubic
+from .bezier import control_box, normal_at, split_u, split_u_cubic, split_v, split_v_cubic
 
 # Termination criteria and split heuristics (codes as in options.CRITERION_CODE / SPLIT_CODE).
 FLOAT, FIXED, ADAPTIVE, MANTISSA = 0, 1, 2, 3
@@ -186,12 +186,9 @@ def _set_event(trace, step, event):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _open_child(buf, box, mf, mi, s, count, fx, fy, fz, ray, best_t, p, trace):
-    """Box of a fresh sub-patch in slot s, tested against the ray; returns 1 if it stays a candidate."""
-    if count == 16:
-        control_box_cubic(buf, s, box)
-    else:
-        control_box(buf, s, count, box)
+def _open_child(box, mf, mi, s, fx, fy, fz, ray, best_t, p, trace):
+    """Test the fresh sub-patch in slot s (its box already computed) against the ray;
+    returns 1 if it stays a candidate."""
     mf[s, M_D] = _l1(box, s)
     ok, t_in, t_out = slab(box[s], fx, fy, fz, ray)
     mf[s, M_TIN] = t_in
@@ -236,7 +233,8 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, frame, ray, hit,
     mi[s, 1] = 0
     mi[s, 2] = -1
     effort = 1
-    sp = _open_child(buf, box, mf, mi, s, count, fx, fy, fz, ray, hit[H_TIN], p, trace)
+    control_box(buf, s, count, box)
+    sp = _open_child(box, mf, mi, s, fx, fy, fz, ray, hit[H_TIN], p, trace)
     while sp > 0:
         sp -= 1
         a = order[sp]
@@ -280,16 +278,18 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, frame, ray, hit,
         else:
             direction = 1 - mi[a, 2] if mi[a, 2] >= 0 else 0
         b = order[sp + 1]
-        if direction == 0:
-            if cubic:
-                split_u_cubic(buf, a, b)
+        if cubic:
+            if direction == 0:
+                split_u_cubic(buf, a, b, box)
             else:
-                split_u(buf, a, b, m, n)
+                split_v_cubic(buf, a, b, box)
         else:
-            if cubic:
-                split_v_cubic(buf, a, b)
+            if direction == 0:
+                split_u(buf, a, b, m, n)
             else:
                 split_v(buf, a, b, m, n)
+            control_box(buf, a, count, box)
+            control_box(buf, b, count, box)
         for c in range(4):
             mf[b, M_U0 + c] = mf[a, M_U0 + c]
         if direction == 0:
@@ -306,8 +306,8 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, frame, ray, hit,
             mi[child, 0] = depth + 1
             mi[child, 1] = stalled
             mi[child, 2] = direction
-        alive_a = _open_child(buf, box, mf, mi, a, count, fx, fy, fz, ray, hit[H_TIN], p, trace)
-        alive_b = _open_child(buf, box, mf, mi, b, count, fx, fy, fz, ray, hit[H_TIN], p, trace)
+        alive_a = _open_child(box, mf, mi, a, fx, fy, fz, ray, hit[H_TIN], p, trace)
+        alive_b = _open_child(box, mf, mi, b, fx, fy, fz, ray, hit[H_TIN], p, trace)
         effort += 2
         if alive_a and alive_b:
             near_a = mf[a, M_TIN] <= mf[b, M_TIN]
