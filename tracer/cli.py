@@ -1,0 +1,287 @@
+"""The `psrt` command line: render, trace, bench (and view, when the viewer is installed).
+
+Tracer option flags are generated from `tracer.options.option_fields()`, so the
+CLI and the viewer expose the same options with the same names, ranges and help.
+Bad input (scene errors, option values, sizes) prints one message naming the
+file, key or flag on stderr and exits with status 2; set PSRT_TRACEBACK=1 to get
+the traceback instead.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import os
+import sys
+from dataclasses import asdict, replace
+from pathlib import Path
+
+from .errors import SceneError
+from .options import CRITERIA, PRECISIONS, SPLITS, Options, option_fields, parse_assignment
+
+SWEPT = ("criterion", "split", "precision", "mode")  # bench sweeps these instead of taking flags
+
+
+# ---- argument types ---------------------------------------------------------------
+
+def parse_size(text: str):
+    """'WxH' -> (W, H), positive integers."""
+    parts = text.lower().split("x")
+    try:
+        w, h = (int(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WxH with positive integers (e.g. 512x512), got {text!r}")
+    if w < 1 or h < 1 or w > 16384 or h > 16384:
+        raise argparse.ArgumentTypeError(f"expected WxH with sides in 1..16384, got {text!r}")
+    return w, h
+
+
+def parse_pixel(text: str):
+    """'X,Y' -> (X, Y): column and row (row 0 at the top)."""
+    try:
+        x, y = (int(p) for p in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y with integer column and row, got {text!r}")
+    return x, y
+
+
+def option_flag(f) -> str:
+    return "--" + (f.metadata.get("cli") or f.name.replace("_", "-"))
+
+
+def add_option_flags(parser, exclude=()):
+    """One flag per Options field (type, choices, range and default from its metadata), and --set."""
+    groups = {}
+    for f in option_fields():
+        if f.name in exclude:
+            continue
+        meta = f.metadata
+        group = groups.get(meta["group"]) or groups.setdefault(
+            meta["group"], parser.add_argument_group(f"{meta['group'].lower()} options"))
+        extra = f"; range {meta['lo']}..{meta['hi']}" if meta["lo"] is not None else ""
+        group.add_argument(option_flag(f), dest=f"opt_{f.name}", type=type(f.default), default=None,
+                           choices=meta["choices"], metavar=None if meta["choices"] else f.name.upper(),
+                           help=f"{meta['help']} (default: {f.default}{extra})")
+    parser.add_argument("--set", action="append", default=[], metavar="OPTION=VALUE",
+                        help="set any option by name, e.g. --set fixed_size=1e-4 (repeatable, applied last)")
+
+
+def options_from_args(args) -> Options:
+    """Options() with the given flags, then the --set assignments, applied and validated."""
+    changes = {f.name: getattr(args, f"opt_{f.name}") for f in option_fields()
+               if getattr(args, f"opt_{f.name}", None) is not None}
+    opts = replace(Options(), **changes)
+    for text in args.set:
+        opts = parse_assignment(opts, text)
+    return opts
+
+
+def _check_writable(*paths):
+    """Fail before the (slow) render if an output's directory does not exist."""
+    for p in paths:
+        if p is not None and p != "-":
+            parent = Path(p).resolve().parent
+            if not parent.is_dir():
+                raise ValueError(f"{p}: output directory {parent} does not exist")
+
+
+def _bar(total: int, desc: str, quiet: bool):
+    from tqdm import tqdm
+    return tqdm(total=total, desc=desc, unit="tile", file=sys.stderr, disable=quiet, leave=False)
+
+
+def _write_json(data, path):
+    from .stats import json_safe
+    text = json.dumps(json_safe(data), indent=1)
+    if path is None or path == "-":
+        sys.stdout.write(text + "\n")
+    else:
+        Path(path).write_text(text + "\n")
+
+
+def _say(args, text):
+    if not args.quiet:
+        print(text, file=sys.stderr)
+
+
+# ---- commands ---------------------------------------------------------------------
+
+def cmd_render(args) -> int:
+    from .render import reference_frame, render, tiles
+    from .scene import load_scene
+    from .shade import shade, to_png
+    from .stats import channel_image, error_stats, frame_stats
+
+    _check_writable(args.output, args.aov, args.effort_map, args.error_map, args.stats)
+    scene = load_scene(args.scene)
+    opts = options_from_args(args)
+    width, height = args.size or scene.image_size or (512, 512)
+    with _bar(len(tiles(width, height, opts.tile_size)), "render", args.quiet) as bar:
+        frame = render(scene, opts, size=(width, height), progress=bar.update)
+    to_png(shade(frame, scene, opts.mode), args.output)
+    if args.aov:
+        frame.save_npz(args.aov)
+    if args.effort_map:
+        channel_image("effort", frame).save(args.effort_map, format="PNG")
+    ref = None
+    if args.error_map or args.stats:
+        with _bar(frame.tiles_total, "float64 reference", args.quiet) as bar:
+            ref = reference_frame(scene, frame, progress=bar.update)
+    if args.error_map:
+        channel_image("error", frame, ref).save(args.error_map, format="PNG")
+    fs = frame_stats(frame)
+    if args.stats:
+        _write_json({"scene": str(args.scene), "size": [width, height], "options": asdict(opts), **fs,
+                     "reference_time": ref.seconds, "error": error_stats(frame, ref)}, args.stats)
+    _say(args, f"{args.output}: {width}x{height}, {fs['hits']} hits of {fs['rays']} rays in "
+               f"{fs['time']:.3f} s, mean effort {fs['effort']['mean']:.1f} box tests/ray")
+    return 0
+
+
+def cmd_trace(args) -> int:
+    from .plot import trace_plot
+    from .scene import load_scene
+    from .trace_one import trace_pixel
+
+    _check_writable(args.output, args.plot)
+    scene = load_scene(args.scene)
+    opts = options_from_args(args)
+    x, y = args.pixel
+    tr = trace_pixel(scene, opts, x, y, size=args.size)
+    _write_json(tr.to_json(), args.output)
+    if args.plot:
+        trace_plot(tr, args.plot)
+    ev = tr.events
+    counts = ", ".join(f"{ev.count(k)} {k}" for k in ("split", "miss", "pruned", "hit"))
+    what = (f"hit patch {tr.patch} at t={tr.t:.9g}, box {tr.hit_step()}" if tr.hit else "miss")
+    _say(args, f"pixel {x},{y}: {what}; {len(ev)} boxes ({counts}), effort {tr.effort}"
+               + (" [trace truncated]" if tr.truncated else ""))
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from .bench import format_table, run_bench
+    from .scene import load_scene
+
+    _check_writable(args.json)
+    scene = load_scene(args.scene)
+    base = options_from_args(args)
+    log = None if args.quiet else (lambda text: print(text, file=sys.stderr, flush=True))
+    result = run_bench(scene, base, size=args.size, runs=args.runs, criteria=args.criteria,
+                       splits=args.splits, precisions=args.precisions, log=log)
+    result["scene"] = str(args.scene)
+    print(format_table(result))
+    if args.json:
+        _write_json(result, args.json)
+    return 0
+
+
+def _add_quiet(parser):
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="no progress bars or summary lines on stderr")
+
+
+def _add_view_command(subparsers):
+    """`psrt view SCENE`, only when the viewer package is installed. viewer.app is imported when
+    the command runs (never at start-up); it must provide `main_from_cli(args, opts) -> int`."""
+    try:
+        found = importlib.util.find_spec("viewer.app") is not None
+    except (ImportError, ValueError):
+        found = False
+    if not found:
+        return
+    p = subparsers.add_parser("view", help="open the interactive viewer")
+    p.add_argument("scene", help="scene .json or .bpt file")
+    p.add_argument("--size", type=parse_size, help="image size WxH (default: the scene's, else 512x512)")
+    add_option_flags(p)
+    p.set_defaults(func=_cmd_view)
+
+
+def _cmd_view(args) -> int:
+    from viewer import app  # the CLI is the one place in tracer/ that reaches the viewer
+    return app.main_from_cli(args, options_from_args(args))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="psrt", description="Parametric-surface ray tracer "
+                                     "(floating-point precision subdivision of Bezier patches).")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    p = sub.add_parser("render", help="render a scene to a PNG, with optional per-pixel outputs")
+    p.add_argument("scene", help="scene .json or .bpt file")
+    p.add_argument("-o", "--output", required=True, metavar="IMG.png", help="image in the --mode display")
+    p.add_argument("--size", type=parse_size, help="image size WxH (default: the scene's, else 512x512)")
+    p.add_argument("--aov", metavar="OUT.npz", help="per-pixel arrays of the contract (scene-format.md)")
+    p.add_argument("--effort-map", metavar="PNG", help="box tests per ray on a colour map with a legend")
+    p.add_argument("--error-map", metavar="PNG",
+                   help="L1 position error against the float64 reference of the same rays (holes red, "
+                        "false hits magenta)")
+    p.add_argument("--stats", metavar="JSON", help="rays, hits, time, effort and error statistics "
+                   "(computes the float64 reference)")
+    add_option_flags(p)
+    _add_quiet(p)
+    p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("trace", help="one pixel's subdivision trace as JSON (and a plot)")
+    p.add_argument("scene", help="scene .json or .bpt file")
+    p.add_argument("--pixel", type=parse_pixel, required=True, metavar="X,Y", help="column,row; row 0 at the top")
+    p.add_argument("-o", "--output", metavar="TRACE.json", help="write the trace here (default: stdout)")
+    p.add_argument("--plot", metavar="PNG", help="box diameter over box index, with Dammertz's optimum")
+    p.add_argument("--size", type=parse_size, help="image size WxH (default: the scene's, else 512x512)")
+    add_option_flags(p)
+    _add_quiet(p)
+    p.set_defaults(func=cmd_trace)
+
+    p = sub.add_parser("bench", help="time and check every criterion x split x precision")
+    p.add_argument("--scene", default=str(_default_scene()), help="scene (default: sample_models/teapot.json)")
+    p.add_argument("--size", type=parse_size, default=(512, 512), help="image size WxH (default: 512x512)")
+    p.add_argument("--runs", type=int, default=5, help="timed runs per configuration after one warm-up "
+                   "(default: 5; the median is reported)")
+    p.add_argument("--json", metavar="OUT", help="write all results as JSON")
+    p.add_argument("--criteria", nargs="+", choices=CRITERIA, default=list(CRITERIA), metavar="C",
+                   help=f"criteria to run (default: all of {', '.join(CRITERIA)})")
+    p.add_argument("--splits", nargs="+", choices=SPLITS, default=list(SPLITS), metavar="S",
+                   help=f"split heuristics (default: {', '.join(SPLITS)})")
+    p.add_argument("--precisions", nargs="+", choices=PRECISIONS, default=list(PRECISIONS), metavar="P",
+                   help=f"precisions (default: {', '.join(PRECISIONS)})")
+    add_option_flags(p, exclude=SWEPT)
+    _add_quiet(p)
+    p.set_defaults(func=cmd_bench)
+
+    _add_view_command(sub)
+    return parser
+
+
+def _default_scene() -> Path:
+    from .bench import DEFAULT_SCENE
+    return DEFAULT_SCENE if DEFAULT_SCENE.exists() else Path("sample_models/teapot.json")
+
+
+def main(argv=None) -> int:
+    """Entry point of the `psrt` console script; returns the exit status."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # argparse: bad usage (2) or --help (0)
+        return e.code if isinstance(e.code, int) else 2
+    if args.command is None:
+        parser.print_help(sys.stderr)
+        return 2
+    try:
+        return args.func(args) or 0
+    except (SceneError, ValueError) as e:
+        if os.environ.get("PSRT_TRACEBACK"):
+            raise
+        print(f"psrt {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        if os.environ.get("PSRT_TRACEBACK"):
+            raise
+        print(f"psrt {args.command}: error: {e}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
