@@ -11,6 +11,8 @@ the buffer's dtype (float32 or float64): one source, two compilations.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -19,13 +21,14 @@ HALF = np.float32(0.5)
 
 
 @njit(cache=True, nogil=True, inline='always')
-def split_u(buf, src, dst, m, n):
+def split_u(buf, src, dst, m, n, ncoord):
     """Halve the patch in slot `src` at u = 1/2: `src` keeps u in [0, 1/2], `dst` gets [1/2, 1].
 
-    buf: (slots, 3, points) float32/float64; m, n: degrees along u and v.
+    buf: (slots, 4, points) float32/float64; m, n: degrees along u and v; ncoord: 3 for
+    integral patches, 4 for rational ones (homogeneous w x, w y, w z, w: the same midpoints in 4-D).
     """
     stride = m + 1
-    for c in range(3):
+    for c in range(ncoord):
         a = buf[src, c]
         r = buf[dst, c]
         for j in range(n + 1):
@@ -39,10 +42,10 @@ def split_u(buf, src, dst, m, n):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def split_v(buf, src, dst, m, n):
+def split_v(buf, src, dst, m, n, ncoord):
     """Halve the patch in slot `src` at v = 1/2: `src` keeps v in [0, 1/2], `dst` gets [1/2, 1]."""
     stride = m + 1
-    for c in range(3):
+    for c in range(ncoord):
         a = buf[src, c]
         r = buf[dst, c]
         for i in range(m + 1):
@@ -146,6 +149,44 @@ def control_box(buf, slot, count, box):
         box[slot, 3 + c] = hi
 
 
+@njit(cache=True, nogil=True, inline='always')
+def round_down(q, bits):
+    """The largest number <= q (q exact or one float64 ulp off) on the grid of `bits`-bit floats."""
+    if q == 0.0:
+        return 0.0  # a zero quotient is exact
+    q = np.nextafter(q, -math.inf)  # q carries one float64 rounding: step past it
+    ulp = math.ldexp(1.0, math.frexp(q)[1] - bits)
+    if bits >= 53 or ulp == 0.0:
+        return q
+    return math.floor(q / ulp) * ulp
+
+
+@njit(cache=True, nogil=True, inline='always')
+def round_up(q, bits):
+    """The smallest number >= q on the grid of `bits`-bit floats (see round_down)."""
+    return -round_down(-q, bits)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def control_box_rational(buf, slot, count, box, bits):
+    """Box of the homogenised control points (x/w, y/w, z/w) of a rational patch in `slot`.
+
+    Quotients are formed in float64 and each bound is rounded outward onto the working
+    precision's grid (numba has no rounding modes): the box contains every exact quotient of
+    the stored points, and, like an integral patch's box, cannot shrink below one working ulp,
+    so the float criterion ends where the working precision does (Dammertz 2.7.2).
+    """
+    for c in range(3):
+        lo = math.inf
+        hi = -math.inf
+        for k in range(count):
+            q = float(buf[slot, c, k]) / float(buf[slot, 3, k])
+            lo = min(lo, q)
+            hi = max(hi, q)
+        box[slot, c] = round_down(lo, bits)
+        box[slot, 3 + c] = round_up(hi, bits)
+
+
 @njit(cache=True, nogil=True)
 def _bernstein_row(deg, t, out):
     """Bernstein polynomials B_i^deg(t), i = 0..deg, by the stable triangular recurrence."""
@@ -161,11 +202,11 @@ def _bernstein_row(deg, t, out):
 
 
 @njit(cache=True, nogil=True)
-def evaluate(pts, m, n, u, v, scratch, out):
+def evaluate(pts, m, n, u, v, ncoord, scratch, out):
     """Point and derivatives of one patch at (u, v), in float64.
 
-    pts: (3, points) control points (any float dtype); scratch: (4, >= max degree + 1)
-    float64; out: (4, 3) float64 receives S, dS/du, dS/dv and d2S/dudv.
+    pts: (>= ncoord, points) control points (any float dtype); scratch: (4, >= max degree + 1)
+    float64; out: (4, >= ncoord) float64 receives S, dS/du, dS/dv and d2S/dudv per coordinate.
     """
     bu = scratch[0]
     bv = scratch[1]
@@ -178,10 +219,7 @@ def evaluate(pts, m, n, u, v, scratch, out):
     if n > 0:
         _bernstein_row(n - 1, v, dv)
     stride = m + 1
-    for r in range(4):
-        for c in range(3):
-            out[r, c] = 0.0
-    for c in range(3):
+    for c in range(ncoord):
         a = pts[c]
         s = 0.0
         for j in range(n + 1):
@@ -208,16 +246,28 @@ def evaluate(pts, m, n, u, v, scratch, out):
 
 
 @njit(cache=True, nogil=True)
-def normal_at(pts, m, n, u, v, scratch, d, out):
+def normal_at(pts, m, n, u, v, rational, scratch, d, out):
     """Unit normal dS/du x dS/dv at (u, v) into out (3,), float64.
 
     Where a derivative vanishes (a patch edge collapsed to a point, as on the
     teapot's lid and bottom) the normal is the limit from inside the patch: the
     vanishing dS/du is replaced by the mixed derivative, signed toward the
-    interior. scratch: as for `evaluate`; d: (6, 3) float64 work space.
+    interior. Rational patches (pts rows w x, w y, w z, w) get their Euclidean derivatives
+    by the quotient rule. scratch: as for `evaluate`; d: (6, 4) float64 work space.
     Returns False if no normal could be found (a fully degenerate patch).
     """
-    evaluate(pts, m, n, u, v, scratch, d)
+    evaluate(pts, m, n, u, v, 4 if rational else 3, scratch, d)
+    if rational:
+        # P = S W  =>  S_u = (P_u - S W_u) / W,  S_uv = (P_uv - S_u W_v - S_v W_u - S W_uv) / W
+        w = d[0, 3]
+        for c in range(3):
+            s0 = d[0, c] / w
+            s_u = (d[1, c] - s0 * d[1, 3]) / w
+            s_v = (d[2, c] - s0 * d[2, 3]) / w
+            d[3, c] = (d[3, c] - s_u * d[2, 3] - s_v * d[1, 3] - s0 * d[3, 3]) / w
+            d[0, c] = s0
+            d[1, c] = s_u
+            d[2, c] = s_v
     su = d[4]
     sv = d[5]
     for c in range(3):

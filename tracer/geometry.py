@@ -22,10 +22,12 @@ PRECISION_BITS = {"f32": 24, "f64": 53}
 @dataclass(frozen=True)
 class Geometry:
     precision: str
-    ctrl: np.ndarray      # (3, total points) working dtype, local to the patch's frame
+    ctrl: np.ndarray      # (4, total points) working dtype, local to the patch's frame; row 3 the
+                          # weight, rows 0-2 premultiplied by it (homogeneous) for rational patches
     pstart: np.ndarray    # (n_patches + 1,) int64
     deg_u: np.ndarray     # (n_patches,) int32
     deg_v: np.ndarray     # (n_patches,) int32
+    rational: np.ndarray  # (n_patches,) int8: 1 for rational patches
     frame: np.ndarray     # (n_patches, 3) float64 frame origin of each patch
     patch_box: np.ndarray # (n_patches, 6) float64 tight world boxes (one quad split, padded)
     bvh: Bvh
@@ -49,7 +51,8 @@ class Geometry:
     def patch_points(self, p: int) -> np.ndarray:
         """World control points of patch p as stored (working precision widened), (count, 3)."""
         a, b = self.pstart[p], self.pstart[p + 1]
-        return self.ctrl[:, a:b].T.astype(np.float64) + self.frame[p]
+        local = self.ctrl[:, a:b].T.astype(np.float64)
+        return local[:, :3] / local[:, 3:] + self.frame[p]
 
 
 def halve(grid: np.ndarray, axis: int):
@@ -67,10 +70,12 @@ def halve(grid: np.ndarray, axis: int):
 def tight_box(grid: np.ndarray) -> np.ndarray:
     """Union of the control boxes of the four quarter patches (Lischinski & Gonczarowski 3.1).
 
-    grid: (n+1, m+1, 3) indexed [j, i]. Returns lo xyz, hi xyz.
+    grid: (n+1, m+1, 4) homogeneous points (w x, w y, w z, w) indexed [j, i]; the quarters
+    are split in 4-D and homogenised. Returns lo xyz, hi xyz.
     """
     quarters = [q for half in halve(grid, 1) for q in halve(half, 0)]
-    pts = np.concatenate([q.reshape(-1, 3) for q in quarters])
+    pts = np.concatenate([q.reshape(-1, 4) for q in quarters])
+    pts = pts[:, :3] / pts[:, 3:]
     return np.concatenate([pts.min(axis=0), pts.max(axis=0)])
 
 
@@ -80,10 +85,6 @@ def prepare(scene, precision: str = "f32") -> Geometry:
         raise ValueError(f"precision must be one of {', '.join(PRECISION_DTYPE)}, got {precision!r}")
     if scene.n_patches == 0:
         raise ValueError(f"{scene.path or 'scene'}: no patches to render")
-    if np.any(scene.rational):
-        first = int(np.argmax(scene.rational))
-        raise ValueError(f"{scene.path or 'scene'}: patch {first} is rational; this tracer build "
-                         "intersects integral Bezier patches only")
     dtype = PRECISION_DTYPE[precision]
     bits = PRECISION_BITS[precision]
     xyz = scene.points[:, :3]
@@ -94,18 +95,21 @@ def prepare(scene, precision: str = "f32") -> Geometry:
         # Round the frame origin to float32 so origin + local stays cheap to form exactly.
         frame[sl] = np.float32(0.5 * (pts.min(axis=0) + pts.max(axis=0)))
     patch_of_point = np.repeat(np.arange(scene.n_patches), np.diff(scene.point_start))
-    ctrl = np.ascontiguousarray((xyz - frame[patch_of_point]).T.astype(dtype))
+    weight = scene.points[:, 3:4]
+    homogeneous = np.hstack([(xyz - frame[patch_of_point]) * weight, weight])
+    ctrl = np.ascontiguousarray(homogeneous.T.astype(dtype))
     boxes = np.zeros((scene.n_patches, 6))
     local = ctrl.astype(np.float64)
     for p in range(scene.n_patches):
         a, b = scene.point_start[p], scene.point_start[p + 1]
         m, n = int(scene.degree_u[p]), int(scene.degree_v[p])
-        grid = local[:, a:b].T.reshape(n + 1, m + 1, 3)
+        grid = local[:, a:b].T.reshape(n + 1, m + 1, 4)
         box = tight_box(grid)
         # The kernel's rounded midpoints may stray a few ulps outside the exact quarter boxes.
-        pad = np.abs(grid).max() * 2.0 ** (4 - bits) + np.finfo(np.float64).tiny
+        magnitude = np.abs(grid[..., :3] / grid[..., 3:]).max()
+        pad = magnitude * 2.0 ** (4 - bits) + np.finfo(np.float64).tiny
         boxes[p, :3] = box[:3] - pad + frame[p]
         boxes[p, 3:] = box[3:] + pad + frame[p]
     return Geometry(precision, ctrl, np.asarray(scene.point_start, np.int64),
                     np.asarray(scene.degree_u, np.int32), np.asarray(scene.degree_v, np.int32),
-                    frame, boxes, build_bvh(boxes))
+                    np.asarray(scene.rational, np.int8), frame, boxes, build_bvh(boxes))

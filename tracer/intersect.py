@@ -11,7 +11,7 @@ those local coordinates, not of the world ones. Ray-box slabs run in float64
 on the (exactly widened) box corners, so the ray is never rounded again.
 
 Scratch layout (one set per thread), S = max depth + 2 slots:
-  buf   (S, 3, P) working dtype   control points per slot
+  buf   (S, 4, P) working dtype   control points per slot (row 3: weights of rational patches)
   box   (S, 6)    float64         local box per slot: lo xyz, hi xyz
   mf    (S, 8)    float64         per slot: u0 u1 v0 v1 t_in t_out diameter parent_diameter
   mi    (S, 4)    int32           per slot: depth, stalled, last split (0 u, 1 v), trace step
@@ -24,7 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .bezier import control_box, normal_at, split_u, split_u_cubic, split_v, split_v_cubic
+from .bezier import control_box, control_box_rational, normal_at, split_u, split_u_cubic, split_v, split_v_cubic
 
 # Termination criteria and split heuristics (codes as in options.CRITERION_CODE / SPLIT_CODE).
 FLOAT, FIXED, ADAPTIVE, MANTISSA = 0, 1, 2, 3
@@ -123,7 +123,15 @@ def _within_ulps(box, s, fx, fy, fz, ulps, bits):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _split_direction(buf, s, m, n, count, ray, split_mode):
+def _corner(buf, s, k, c, rational):
+    """Coordinate c of control point k in slot s, homogenised for rational patches."""
+    if rational:
+        return float(buf[s, c, k]) / float(buf[s, 3, k])
+    return float(buf[s, c, k])
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _split_direction(buf, s, m, n, count, ray, split_mode, rational):
     """0 to halve u, 1 to halve v: the longer parameter direction ('length'), or the one
     whose edges are least parallel to the ray ('cross', Dammertz 2.5.2).
 
@@ -138,20 +146,20 @@ def _split_direction(buf, s, m, n, count, ray, split_mode):
         ub = m if e == 0 else last
         va = 0 if e == 0 else m
         vb = n * (m + 1) if e == 0 else last
-        ex = buf[s, 0, ub] - buf[s, 0, ua]
-        ey = buf[s, 1, ub] - buf[s, 1, ua]
-        ez = buf[s, 2, ub] - buf[s, 2, ua]
-        gx = buf[s, 0, vb] - buf[s, 0, va]
-        gy = buf[s, 1, vb] - buf[s, 1, va]
-        gz = buf[s, 2, vb] - buf[s, 2, va]
+        ex = _corner(buf, s, ub, 0, rational) - _corner(buf, s, ua, 0, rational)
+        ey = _corner(buf, s, ub, 1, rational) - _corner(buf, s, ua, 1, rational)
+        ez = _corner(buf, s, ub, 2, rational) - _corner(buf, s, ua, 2, rational)
+        gx = _corner(buf, s, vb, 0, rational) - _corner(buf, s, va, 0, rational)
+        gy = _corner(buf, s, vb, 1, rational) - _corner(buf, s, va, 1, rational)
+        gz = _corner(buf, s, vb, 2, rational) - _corner(buf, s, va, 2, rational)
         if split_mode == SPLIT_CROSS:
             dx = ray[R_D]
             dy = ray[R_D + 1]
             dz = ray[R_D + 2]
             ex, ey, ez = ey * dz - ez * dy, ez * dx - ex * dz, ex * dy - ey * dx
             gx, gy, gz = gy * dz - gz * dy, gz * dx - gx * dz, gx * dy - gy * dx
-        lu = max(lu, float(ex * ex + ey * ey + ez * ez))
-        lv = max(lv, float(gx * gx + gy * gy + gz * gz))
+        lu = max(lu, ex * ex + ey * ey + ez * ez)
+        lv = max(lv, gx * gx + gy * gy + gz * gz)
     return 0 if lu > lv else 1
 
 
@@ -201,13 +209,14 @@ def _open_child(box, mf, mi, s, fx, fy, fz, ray, best_t, p, trace):
 
 
 @njit(cache=True, nogil=True)
-def search_patch(p, ctrl, pstart, deg_u, deg_v, frame, ray, hit,
+def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, ray, hit,
                  criterion, param, split_mode, max_depth, bits,
                  buf, box, mf, mi, order, trace):
     """Closest intersection of `ray` with patch p beyond t_min and before hit[H_TIN].
 
     Updates `hit` when a closer hit box is found; returns the number of boxes computed.
-    ctrl: (3, total points) working dtype, local to frame[p] (float64 (n_patches, 3)).
+    ctrl: (4, total points) working dtype, local to frame[p] (float64 (n_patches, 3)); row 3
+    holds the weights, rows 0-2 are premultiplied by them for rational[p] patches.
     criterion/param: FLOAT (-), FIXED (L1 size), ADAPTIVE (fraction folded into ray T0/dT),
     MANTISSA (ulps); every criterion also stops when the box stops shrinking.
     bits: mantissa bits of the working dtype (24 or 53). trace: None or (tf, ti, tn).
@@ -215,13 +224,15 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, frame, ray, hit,
     m = deg_u[p]
     n = deg_v[p]
     count = (m + 1) * (n + 1)
-    cubic = m == 3 and n == 3
+    is_rational = rational[p] != 0
+    ncoord = 4 if is_rational else 3
+    cubic = m == 3 and n == 3 and not is_rational
     start = pstart[p]
     fx = frame[p, 0]
     fy = frame[p, 1]
     fz = frame[p, 2]
     s = order[0]
-    for c in range(3):
+    for c in range(ncoord):
         for k in range(count):
             buf[s, c, k] = ctrl[c, start + k]
     mf[s, M_U0] = 0.0
@@ -233,7 +244,10 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, frame, ray, hit,
     mi[s, 1] = 0
     mi[s, 2] = -1
     effort = 1
-    control_box(buf, s, count, box)
+    if is_rational:
+        control_box_rational(buf, s, count, box, bits)
+    else:
+        control_box(buf, s, count, box)
     sp = _open_child(box, mf, mi, s, fx, fy, fz, ray, hit[H_TIN], p, trace)
     while sp > 0:
         sp -= 1
@@ -274,7 +288,7 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, frame, ray, hit,
             hit[H_DEPTH] = depth
             continue
         if shrank:
-            direction = _split_direction(buf, a, m, n, count, ray, split_mode)
+            direction = _split_direction(buf, a, m, n, count, ray, split_mode, is_rational)
         else:
             direction = 1 - mi[a, 2] if mi[a, 2] >= 0 else 0
         b = order[sp + 1]
@@ -285,11 +299,15 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, frame, ray, hit,
                 split_v_cubic(buf, a, b, box)
         else:
             if direction == 0:
-                split_u(buf, a, b, m, n)
+                split_u(buf, a, b, m, n, ncoord)
             else:
-                split_v(buf, a, b, m, n)
-            control_box(buf, a, count, box)
-            control_box(buf, b, count, box)
+                split_v(buf, a, b, m, n, ncoord)
+            if is_rational:
+                control_box_rational(buf, a, count, box, bits)
+                control_box_rational(buf, b, count, box, bits)
+            else:
+                control_box(buf, a, count, box)
+                control_box(buf, b, count, box)
         for c in range(4):
             mf[b, M_U0 + c] = mf[a, M_U0 + c]
         if direction == 0:
@@ -322,7 +340,7 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, frame, ray, hit,
 
 
 @njit(cache=True, nogil=True)
-def trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, frame,
+def trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame,
               node_box, node_child, node_patch,
               criterion, param, split_mode, max_depth, bits,
               buf, box, mf, mi, order, node_stack, node_tin, trace):
@@ -347,7 +365,7 @@ def trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, frame,
             continue
         left = node_child[node, 0]
         if left < 0:
-            effort += search_patch(node_patch[node], ctrl, pstart, deg_u, deg_v, frame, ray, hit,
+            effort += search_patch(node_patch[node], ctrl, pstart, deg_u, deg_v, rational, frame, ray, hit,
                                    criterion, param, split_mode, max_depth, bits,
                                    buf, box, mf, mi, order, trace)
             continue
@@ -371,17 +389,18 @@ def trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, frame,
 
 
 @njit(cache=True, nogil=True)
-def hit_normal(hit, ctrl, pstart, deg_u, deg_v, ray, pts, scratch, work, out):
-    """Unit normal at the hit's (u, v), facing the ray; pts: (3, >= points) float64 scratch."""
+def hit_normal(hit, ctrl, pstart, deg_u, deg_v, rational, ray, pts, scratch, work, out):
+    """Unit normal at the hit's (u, v), facing the ray; pts: (4, >= points) float64 scratch,
+    scratch: (4, >= max degree + 1), work: (6, 4)."""
     p = int(hit[H_PATCH])
     m = deg_u[p]
     n = deg_v[p]
     start = pstart[p]
     count = (m + 1) * (n + 1)
-    for c in range(3):
+    for c in range(4):
         for k in range(count):
             pts[c, k] = ctrl[c, start + k]
-    if not normal_at(pts, m, n, hit[H_U], hit[H_V], scratch, work, out):
+    if not normal_at(pts, m, n, hit[H_U], hit[H_V], rational[p] != 0, scratch, work, out):
         # A fully collapsed patch: face the ray.
         length = math.sqrt(ray[3] ** 2 + ray[4] ** 2 + ray[5] ** 2)
         for c in range(3):
@@ -395,6 +414,6 @@ def hit_normal(hit, ctrl, pstart, deg_u, deg_v, ray, pts, scratch, work, out):
 def scratch_for(n_points: int, max_depth: int, dtype):
     """Per-thread scratch arrays for search_patch / trace_ray (see module docstring)."""
     slots = max_depth + 2
-    return (np.zeros((slots, 3, n_points), dtype), np.zeros((slots, 6)), np.zeros((slots, 8)),
+    return (np.zeros((slots, 4, n_points), dtype), np.zeros((slots, 6)), np.zeros((slots, 8)),
             np.zeros((slots, 4), np.int32), np.arange(slots, dtype=np.int32),
             np.zeros(128, np.int32), np.zeros(128))

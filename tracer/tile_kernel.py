@@ -11,13 +11,13 @@ import math
 import numpy as np
 from numba import njit
 
-from .intersect import (H_DU, H_DV, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN,
+from .intersect import (H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN,
                         hit_normal, make_ray, trace_ray)
 
 
 @njit(cache=True, nogil=True)
 def render_tile(y0, y1, x0, x1, origins, dirs,
-                ctrl, pstart, deg_u, deg_v, frame, node_box, node_child, node_patch,
+                ctrl, pstart, deg_u, deg_v, rational, frame, node_box, node_child, node_patch,
                 criterion, param, split_mode, max_depth, bits, detail_slope, max_points, stack_nodes,
                 out_hit, out_t, out_pos, out_lo, out_hi, out_normal, out_uv, out_patch, out_effort):
     """Trace pixels [y0, y1) x [x0, x1). origins/dirs: (H, W, 3) float64 rays as traced.
@@ -26,7 +26,7 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
     Outputs follow the per-pixel contract (see render.Frame).
     """
     slots = max_depth + 2
-    buf = np.zeros((slots, 3, max_points), ctrl.dtype)
+    buf = np.zeros((slots, 4, max_points), ctrl.dtype)
     box = np.zeros((slots, 6))
     mf = np.zeros((slots, 8))
     mi = np.zeros((slots, 4), np.int32)
@@ -35,9 +35,9 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
     node_tin = np.zeros(stack_nodes)
     ray = np.zeros(RAY_LEN)
     hit = np.zeros(HIT_LEN)
-    pts = np.zeros((3, max_points))
+    pts = np.zeros((4, max_points))
     scratch = np.zeros((4, max_points))
-    work = np.zeros((6, 3))
+    work = np.zeros((6, 4))
     normal = np.zeros(3)
     for y in range(y0, y1):
         for x in range(x0, x1):
@@ -48,7 +48,7 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
             make_ray(ray, origins[y, x, 0], origins[y, x, 1], origins[y, x, 2], dx, dy, dz,
                      0.0, 0.0, detail_slope * length)
             hit[H_TIN] = math.inf
-            out_effort[y, x] = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, frame,
+            out_effort[y, x] = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame,
                                          node_box, node_child, node_patch,
                                          criterion, param, split_mode, max_depth, bits,
                                          buf, box, mf, mi, order, node_stack, node_tin, None)
@@ -79,6 +79,6 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
             out_t[y, x] = min(max(along / (length * length), hit[H_TIN]), hit[H_TOUT])
             out_uv[y, x, 0] = hit[H_U]
             out_uv[y, x, 1] = hit[H_V]
-            hit_normal(hit, ctrl, pstart, deg_u, deg_v, ray, pts, scratch, work, normal)
+            hit_normal(hit, ctrl, pstart, deg_u, deg_v, rational, ray, pts, scratch, work, normal)
             for c in range(3):
                 out_normal[y, x, c] = normal[c]

@@ -78,7 +78,7 @@ class PixelTrace:
 def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angle: float,
                     pixel=(0, 0), capacity: int = TRACE_CAPACITY) -> PixelTrace:
     """Trace one ray with step recording; same kernel and options as the renderer."""
-    (ctrl, pstart, deg_u, deg_v, frame, node_box, node_child, node_patch, criterion, param, split_mode,
+    (ctrl, pstart, deg_u, deg_v, rational, frame, node_box, node_child, node_patch, criterion, param, split_mode,
      max_depth, bits, slope, max_points, stack_nodes) = kernel_args(geom, opts, pixel_angle)
     buf, box, mf, mi, order, node_stack, node_tin = scratch_for(max_points, max_depth, ctrl.dtype)
     node_stack = np.zeros(max(stack_nodes, 128), np.int32)
@@ -91,7 +91,7 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
     hit = np.zeros(HIT_LEN)
     make_ray(ray, o[0], o[1], o[2], d[0], d[1], d[2], 0.0, 0.0, slope * length)
     hit[H_TIN] = math.inf
-    effort = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, frame, node_box, node_child, node_patch,
+    effort = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, node_box, node_child, node_patch,
                        criterion, param, split_mode, max_depth, bits,
                        buf, box, mf, mi, order, node_stack, node_tin, trace)
     k = int(trace[2][0])
@@ -102,8 +102,9 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
     normal = np.zeros(3)
     t = math.inf
     if found:
-        pts = np.zeros((3, max_points))
-        hit_normal(hit, ctrl, pstart, deg_u, deg_v, ray, pts, np.zeros((4, max_points)), np.zeros((6, 3)), normal)
+        pts = np.zeros((4, max_points))
+        hit_normal(hit, ctrl, pstart, deg_u, deg_v, rational, ray, pts, np.zeros((4, max_points)),
+                   np.zeros((6, 4)), normal)
         t = min(max(float((centre - o) @ d) / (length * length), hit[H_TIN]), hit[H_TOUT])
     return PixelTrace(tuple(pixel), found, int(hit[H_PATCH]) if found else -1, t, centre, lo, hi, normal,
                       np.array([hit[H_U], hit[H_V]]), int(effort), trace[0][:k].copy(), trace[1][:k].copy(),
