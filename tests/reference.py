@@ -1,0 +1,276 @@
+"""Slow, obviously right references for the kernels (STYLE rule 6).
+
+Everything here is plain numpy or exact rational arithmetic, written for
+clarity, never for speed: Bernstein sums straight from the definition, de
+Casteljau on whole grids, an exact slab test, and a float64 ray-patch
+intersection by interval subdivision followed by Newton polishing.
+
+Control grids are arrays P[i, j, xyz] (i along u, j along v), unlike the
+kernels' flat point order k = j*(m+1) + i; `grid` and `flat` convert.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+F32_BITS = 24
+
+
+# ---- layout -----------------------------------------------------------------------
+
+def grid(points, m: int, n: int) -> np.ndarray:
+    """Flat points (count, 3) in the contract's order k = j*(m+1) + i -> P[i, j, :]."""
+    pts = np.asarray(points)
+    return pts.reshape(n + 1, m + 1, pts.shape[-1]).transpose(1, 0, 2)
+
+
+def flat(P) -> np.ndarray:
+    """P[i, j, :] -> flat points (count, 3), k = j*(m+1) + i."""
+    P = np.asarray(P)
+    return P.transpose(1, 0, 2).reshape(-1, P.shape[-1])
+
+
+# ---- floats -----------------------------------------------------------------------
+
+def ulp(x, bits: int = F32_BITS):
+    """The kernel's unit in the last place of |x| for `bits`-bit mantissas: 2^(exponent - bits),
+    with x = f * 2^exponent, 0.5 <= f < 1 (so ulp(1.0) = 2^-23 for float32). ulp(0) = 0."""
+    x = np.abs(np.asarray(x, np.float64))
+    _, e = np.frexp(x)
+    return np.where(x > 0, np.ldexp(1.0, e - bits), 0.0)
+
+
+def round32(x) -> np.ndarray:
+    """Round float64 values to the nearest float32 and widen back."""
+    return np.asarray(x, np.float64).astype(np.float32).astype(np.float64)
+
+
+# ---- Bernstein form ---------------------------------------------------------------
+
+def bernstein(n: int, i: int, t):
+    """B_i^n(t) = C(n, i) t^i (1 - t)^(n - i); works for floats and Fractions."""
+    return math.comb(n, i) * t ** i * (1 - t) ** (n - i)
+
+
+def evaluate(P, u: float, v: float) -> np.ndarray:
+    """S(u, v) = sum_ij B_i^m(u) B_j^n(v) P_ij, float64, straight from the definition."""
+    P = np.asarray(P, np.float64)
+    m, n = P.shape[0] - 1, P.shape[1] - 1
+    bu = np.array([bernstein(m, i, u) for i in range(m + 1)])
+    bv = np.array([bernstein(n, j, v) for j in range(n + 1)])
+    return np.einsum("i,j,ijc->c", bu, bv, P)
+
+
+def derivatives(P, u: float, v: float):
+    """(S, dS/du, dS/dv, d2S/dudv) at (u, v) from the difference grids (hodographs)."""
+    P = np.asarray(P, np.float64)
+    m, n = P.shape[0] - 1, P.shape[1] - 1
+    s = evaluate(P, u, v)
+    su = m * evaluate(P[1:] - P[:-1], u, v) if m > 0 else np.zeros(3)
+    sv = n * evaluate(P[:, 1:] - P[:, :-1], u, v) if n > 0 else np.zeros(3)
+    d2 = P[1:, 1:] - P[1:, :-1] - P[:-1, 1:] + P[:-1, :-1]
+    suv = m * n * evaluate(d2, u, v) if m > 0 and n > 0 else np.zeros(3)
+    return s, su, sv, suv
+
+
+def normal(P, u: float, v: float) -> np.ndarray:
+    """Unit dS/du x dS/dv (no fallback: use it away from degenerate points)."""
+    _, su, sv, _ = derivatives(P, u, v)
+    c = np.cross(su, sv)
+    return c / np.linalg.norm(c)
+
+
+# ---- de Casteljau -----------------------------------------------------------------
+
+def de_casteljau(points, t):
+    """Split a control polygon (first axis) at t: (left half, right half). Works on object
+    arrays of Fractions too, so it can be exact."""
+    pts = [points[k] for k in range(len(points))]
+    left, right = [pts[0]], [pts[-1]]
+    while len(pts) > 1:
+        pts = [(1 - t) * a + t * b for a, b in zip(pts[:-1], pts[1:])]
+        left.append(pts[0])
+        right.append(pts[-1])
+    return np.stack(left), np.stack(right[::-1])
+
+
+def split(P, axis: int, t=0.5):
+    """Split a grid P[i, j, :] at t along u (axis 0) or v (axis 1): (lower, upper)."""
+    Pm = np.moveaxis(np.asarray(P), axis, 0)
+    lo, hi = de_casteljau(Pm, t)
+    return np.moveaxis(lo, 0, axis), np.moveaxis(hi, 0, axis)
+
+
+def exact(P) -> np.ndarray:
+    """An object array of Fractions equal to the float array P."""
+    return np.vectorize(Fraction, otypes=[object])(np.asarray(P, np.float64))
+
+
+def box(points) -> np.ndarray:
+    """Axis-aligned box (lo xyz, hi xyz) of points (..., 3)."""
+    pts = np.asarray(points, np.float64).reshape(-1, 3)
+    return np.concatenate([pts.min(axis=0), pts.max(axis=0)])
+
+
+# ---- ray against box ---------------------------------------------------------------
+
+def slab_exact(bx, origin, direction, t_min=0.0):
+    """Exact ray-box test in rational arithmetic: (hit, t_in, t_out) with t_in >= t_min.
+
+    A zero direction component means: inside the slab (bounds included) or a miss, returned
+    as (False, None, None); other misses return their empty interval t_in > t_out, so callers
+    can tell by how much the ray missed.
+    """
+    t_in, t_out = Fraction(t_min), None
+    for c in range(3):
+        lo, hi = Fraction(bx[c]), Fraction(bx[3 + c])
+        o, d = Fraction(origin[c]), Fraction(direction[c])
+        if d == 0:
+            if not lo <= o <= hi:
+                return False, None, None
+            continue
+        a, b = sorted(((lo - o) / d, (hi - o) / d))
+        t_in = max(t_in, a)
+        t_out = b if t_out is None else min(t_out, b)
+    if t_out is None:  # zero direction: the ray is a point inside the box
+        return True, t_in, math.inf
+    return t_in <= t_out, t_in, t_out
+
+
+# ---- ray against patch -------------------------------------------------------------
+
+@dataclass
+class RefHit:
+    """Closest ray-patch intersection found by `intersect_patch`.
+
+    certain: False when some candidate region could not be resolved by Newton's method
+    (tangent rays at silhouettes) and might hold a closer hit or a hit at all.
+    """
+
+    hit: bool
+    t: float = math.inf
+    u: float = math.nan
+    v: float = math.nan
+    point: np.ndarray | None = None
+    certain: bool = True
+
+
+def _ray_frame(d):
+    w = d / np.linalg.norm(d)
+    helper = np.eye(3)[int(np.argmin(np.abs(w)))]
+    e1 = np.cross(w, helper)
+    e1 /= np.linalg.norm(e1)
+    return np.stack([e1, np.cross(w, e1), w])
+
+
+def _split_all(Q, axis):
+    """Halve a stack of grids Q[k, i, j, c] along u (axis 1) or v (axis 2) at 1/2."""
+    Qm = np.moveaxis(Q, axis, 0)
+    left, right = [Qm[0]], [Qm[-1]]
+    level = Qm
+    while len(level) > 1:
+        level = 0.5 * (level[:-1] + level[1:])
+        left.append(level[0])
+        right.append(level[-1])
+    return np.moveaxis(np.stack(left), 0, axis), np.moveaxis(np.stack(right[::-1]), 0, axis)
+
+
+def _newton(P, o, d, frame, u, v, scale, iters=60):
+    """Solve (S(u, v) - o) . e_k = 0 (k = 1, 2) from (u, v); returns (u, v) or None.
+
+    Iterates until the residual stops decreasing (float64 noise), so the root is as accurate
+    as float64 evaluation allows, and accepts it if the residual is tiny."""
+    best, best_f, stale = None, math.inf, 0
+    for _ in range(iters):
+        s, su, sv, _ = derivatives(P, u, v)
+        f = frame[:2] @ (s - o)
+        size = float(np.abs(f).max())
+        if size < best_f:
+            best, best_f, stale = (u, v), size, 0
+        else:
+            stale += 1
+        if size == 0.0 or stale >= 3:
+            break
+        jac = np.stack([frame[:2] @ su, frame[:2] @ sv], axis=1)
+        if abs(np.linalg.det(jac)) < 1e-300:
+            break
+        du, dv = np.linalg.solve(jac, -f)
+        u, v = u + du, v + dv
+        if not (-0.5 < u < 1.5 and -0.5 < v < 1.5):
+            break
+    return best if best_f <= 1e-12 * scale else None
+
+
+def intersect_patch(P, origin, direction, t_min=0.0, levels=12) -> RefHit:
+    """Closest intersection of the ray origin + t*direction (t >= t_min) with patch P[i, j, :].
+
+    Projects the grid onto the two planes through the ray, keeps the sub-patches whose
+    projected control boxes contain the ray (de Casteljau quad splits, `levels` times), then
+    polishes a root from the centre of every surviving leaf with Newton's method in float64.
+    """
+    P = np.asarray(P, np.float64)
+    o = np.asarray(origin, np.float64)
+    d = np.asarray(direction, np.float64)
+    length = float(np.linalg.norm(d))
+    frame = _ray_frame(d)
+    Q = (P - o) @ frame.T  # (m+1, n+1, 3): two distances from the ray, distance along it
+    scale = float(np.abs(P).max() + np.abs(o).max())
+    slack = 1e-12 * scale
+    stack = Q[None]
+    iv = np.array([[0.0, 1.0, 0.0, 1.0]])
+    for level in range(levels + 1):
+        flatq = stack.reshape(len(stack), -1, 3)
+        lo, hi = flatq.min(axis=1), flatq.max(axis=1)
+        keep = ((lo[:, 0] <= slack) & (hi[:, 0] >= -slack) & (lo[:, 1] <= slack) & (hi[:, 1] >= -slack)
+                & (hi[:, 2] >= t_min * length - slack))
+        stack, iv = stack[keep], iv[keep]
+        if len(stack) == 0 or level == levels:
+            break
+        a, b = _split_all(stack, 1)
+        mid = 0.5 * (iv[:, 0] + iv[:, 1])
+        iv = np.concatenate([np.column_stack([iv[:, 0], mid, iv[:, 2:]]),
+                             np.column_stack([mid, iv[:, 1], iv[:, 2:]])])
+        stack = np.concatenate([a, b])
+        a, b = _split_all(stack, 2)
+        mid = 0.5 * (iv[:, 2] + iv[:, 3])
+        iv = np.concatenate([np.column_stack([iv[:, :2], iv[:, 2], mid]),
+                             np.column_stack([iv[:, :2], mid, iv[:, 3]])])
+        stack = np.concatenate([a, b])
+    best = RefHit(False)
+    unresolved = []  # nearest distance along the ray of leaves Newton could not resolve
+    for q, (u0, u1, v0, v1) in zip(stack, iv):
+        root = _newton(P, o, d, frame, 0.5 * (u0 + u1), 0.5 * (v0 + v1), scale)
+        if root is None:
+            unresolved.append(q[..., 2].min() / length)
+            continue
+        u, v = root
+        wu, wv = u1 - u0, v1 - v0
+        if not (u0 - wu <= u <= u1 + wu and v0 - wv <= v <= v1 + wv):
+            # Newton left this leaf: a root inside it may have been skipped
+            unresolved.append(q[..., 2].min() / length)
+        if not (-1e-9 <= u <= 1 + 1e-9 and -1e-9 <= v <= 1 + 1e-9):
+            continue  # a root of the extended surface, outside the patch
+        u, v = min(max(u, 0.0), 1.0), min(max(v, 0.0), 1.0)
+        s = evaluate(P, u, v)
+        t = float((s - o) @ d) / length ** 2
+        if t >= t_min and t < best.t:
+            best = RefHit(True, t, u, v, s)
+    best.certain = not any(t_leaf < best.t for t_leaf in unresolved)
+    return best
+
+
+def intersect_scene(patches, origin, direction, t_min=0.0, levels=12) -> RefHit:
+    """Closest hit over a list of grids; the returned hit carries the patch index as `.patch`."""
+    best, certain = RefHit(False), True
+    best.patch = -1
+    for k, P in enumerate(patches):
+        h = intersect_patch(P, origin, direction, t_min, levels)
+        certain = certain and h.certain
+        if h.hit and h.t < best.t:
+            best = h
+            best.patch = k
+    best.certain = certain
+    return best

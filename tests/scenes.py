@@ -1,0 +1,251 @@
+"""Test scenes built in code, and the float32-against-float64 comparison the image tests share.
+
+Scenes are built as contract dicts and loaded by `scene_from_dict`, so every test
+goes through the same loader as a user's file. Grids are P[i, j, xyz] as in
+`reference.py`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+import reference as ref
+from tracer.camera import View
+from tracer.options import Options
+from tracer.geometry import Geometry, prepare
+from tracer.render import Frame, reference_frame, render, trace_rays
+from tracer.scene import Scene, scene_from_dict
+
+REPO = Path(__file__).resolve().parents[1]
+SAMPLES = REPO / "sample_models"
+TEAPOT_BPT = "teapot.bpt"
+FLOOR = [[-8, -8, 0], [8, -8, 0], [-8, 8, 0], [8, 8, 0]]
+
+
+# ---- scene builders ---------------------------------------------------------------------
+
+def load(data: dict, label: str = "test-scene") -> Scene:
+    """A Scene from a contract dict; `file` entries resolve against sample_models/."""
+    return scene_from_dict(data, label, str(SAMPLES))
+
+
+def patch_entry(P) -> dict:
+    """The contract's inline patch for a grid P[i, j, :]."""
+    P = np.asarray(P, np.float64)
+    return {"degree": [P.shape[0] - 1, P.shape[1] - 1], "points": ref.flat(P).tolist()}
+
+
+def patches_scene(grids, label="patches", separate=False) -> Scene:
+    """One object holding all grids (they share a frame), or one object each if `separate`."""
+    objects = ([{"patches": [patch_entry(P)]} for P in grids] if separate
+               else [{"patches": [patch_entry(P) for P in grids]}])
+    return load({"objects": objects}, label)
+
+
+def teapot(scale=1.0, offset=(0.0, 0.0, 0.0), floor=False) -> Scene:
+    """The sample teapot, scaled about the origin then translated; optionally on the floor patch."""
+    s = float(scale)
+    ox, oy, oz = map(float, offset)
+    transform = [s, 0, 0, ox, 0, s, 0, oy, 0, 0, s, oz, 0, 0, 0, 1]
+    objects = [{"file": TEAPOT_BPT, "transform": transform}]
+    if floor:
+        pts = [[s * x + ox, s * y + oy, s * z + oz] for x, y, z in FLOOR]
+        objects.append({"patches": [{"degree": [1, 1], "points": pts}]})
+    return load({"objects": objects}, f"teapot x{scale:g} +{offset}")
+
+
+def grids_of(scene: Scene) -> list:
+    """World control grids P[i, j, :] (float64, as loaded) of every patch of a scene."""
+    out = []
+    for p in range(scene.n_patches):
+        pts = scene.points[scene.point_start[p]:scene.point_start[p + 1], :3]
+        out.append(ref.grid(pts, int(scene.degree_u[p]), int(scene.degree_v[p])))
+    return out
+
+
+def smooth_patch(rng, m, n, size=2.0, height=0.6, jitter=0.15) -> np.ndarray:
+    """A random but smooth height-field-like patch of degree m x n over [0, size]^2.
+
+    The control net is a jittered regular grid lifted by a few low-frequency waves, so the
+    surface has bumps and folds of moderate curvature but no cusps."""
+    i = np.arange(m + 1)[:, None] / m
+    j = np.arange(n + 1)[None, :] / n
+    x = size * (i + jitter * rng.uniform(-1, 1, (m + 1, n + 1)) / m) + 0 * j
+    y = size * (j + jitter * rng.uniform(-1, 1, (m + 1, n + 1)) / n) + 0 * i
+    z = np.zeros((m + 1, n + 1))
+    for _ in range(3):
+        fu, fv, ph = rng.uniform(0.5, 2.0), rng.uniform(0.5, 2.0), rng.uniform(0, 2 * np.pi)
+        z += height / 3 * np.sin(np.pi * (fu * i + fv * j) + ph)
+    return np.stack([x, y, z], axis=-1)
+
+
+def loop_patch(rng) -> np.ndarray:
+    """A random self-intersecting bicubic: a looping cubic profile (control polygon
+    0, 3, -2, 1 crosses itself) swept along v with a random twist and bend."""
+    prof = np.array([[0.0, 0.0], [3.0, 1.6], [-2.0, 1.6], [1.0, 0.0]])
+    prof += rng.uniform(-0.25, 0.25, prof.shape)
+    P = np.zeros((4, 4, 3))
+    for j in range(4):
+        angle = rng.uniform(-0.3, 0.3) * j
+        c, s = math.cos(angle), math.sin(angle)
+        for i in range(4):
+            x, z = prof[i]
+            P[i, j] = [c * x - s * z, 1.2 * j + rng.uniform(-0.2, 0.2), s * x + c * z + rng.uniform(-0.3, 0.3)]
+    return P
+
+
+def random_patch(rng, m=3, n=3, size=2.0) -> np.ndarray:
+    """Control points uniform in a cube: usually folds over itself."""
+    return rng.uniform(-size / 2, size / 2, (m + 1, n + 1, 3))
+
+
+def split_pair(P, axis: int, t: float):
+    """The two patches of P split at parameter t along u (axis 0) or v (axis 1), in float64."""
+    return ref.split(np.asarray(P, np.float64), axis, t)
+
+
+# ---- views -----------------------------------------------------------------------------
+
+def aim(target, direction, distance, fov_deg, up=(0.0, 0.0, 1.0)) -> View:
+    """A view looking at `target` from `distance` along `direction` (pointing from target to eye)."""
+    d = np.asarray(direction, float)
+    d = d / np.linalg.norm(d)
+    eye = np.asarray(target, float) + distance * d
+    if abs(float(np.dot(d, np.asarray(up, float) / np.linalg.norm(up)))) > 0.99:
+        up = (0.0, 1.0, 0.0)
+    return View(tuple(map(float, eye)), tuple(map(float, target)), tuple(map(float, up)), float(fov_deg))
+
+
+def transformed(view: View, scale=1.0, offset=(0.0, 0.0, 0.0)) -> View:
+    """The same view of a scene scaled about the origin and translated."""
+    off = np.asarray(offset, float)
+    return View(tuple(map(float, np.asarray(view.eye) * scale + off)),
+                tuple(map(float, np.asarray(view.look_at) * scale + off)), view.up, view.fov_deg)
+
+
+TEAPOT_VIEW = View((6.0, -9.0, 5.0), (0.0, 0.0, 1.5), (0.0, 0.0, 1.0), 35.0)
+SIDE_VIEW = View((0.3, -12.0, 1.6), (0.3, 0.0, 1.6), (0.0, 0.0, 1.0), 32.0)   # silhouettes everywhere
+LID_VIEW = View((0.55, -0.8, 3.75), (0.0, 0.0, 3.0), (0.0, 0.0, 1.0), 30.0)  # knob and its apex
+BOTTOM_VIEW = View((0.7, -1.0, -1.4), (0.0, 0.0, 0.05), (0.0, 0.0, 1.0), 35.0)  # collapsed bottom
+
+
+def surface_samples(P, k=65) -> np.ndarray:
+    """S on a k x k parameter grid, (k, k, 3)."""
+    ts = np.linspace(0.0, 1.0, k)
+    return np.array([[ref.evaluate(P, u, v) for v in ts] for u in ts])
+
+
+def silhouette_view(scene: Scene, axis=1, along=0, half_width=0.05, distance=30.0) -> View:
+    """A grazing close-up of the silhouette at the extreme point of the surface in +`axis`,
+    seen along the world axis `along`: the rays there are tangent to the surface."""
+    pts = np.concatenate([surface_samples(P, 33).reshape(-1, 3) for P in grids_of(scene)])
+    target = pts[int(np.argmax(pts[:, axis]))]
+    direction = -np.eye(3)[along]
+    fov = math.degrees(2 * math.atan(half_width / distance))
+    return aim(target, direction, distance, fov)
+
+
+# ---- tracing given rays ------------------------------------------------------------------
+
+def trace(scene_or_geom, origins, dirs, opts: Options = Options(), pixel_angle: float = 0.0) -> Frame:
+    """Trace N given rays (origins (N, 3) or (3,), dirs (N, 3), float64, used as given) through the
+    renderer's kernel; the Frame's channels are (1, N, ...)."""
+    geom = scene_or_geom if isinstance(scene_or_geom, Geometry) else prepare(scene_or_geom, opts.precision)
+    d = np.ascontiguousarray(np.asarray(dirs, np.float64).reshape(1, -1, 3))
+    o = np.ascontiguousarray(np.broadcast_to(np.asarray(origins, np.float64), d.shape[1:])[None])
+    return trace_rays(geom, opts, o, d, pixel_angle)
+
+
+# ---- float32 against float64 -----------------------------------------------------------
+
+@dataclass
+class Comparison:
+    """A float32 render against the float64 `float`-criterion render of the same rays."""
+
+    name: str
+    hits: int              # reference hits
+    holes: int             # reference hit, float32 miss
+    false_hits: int        # float32 hit, reference miss
+    mean_error: float      # mean L1 distance of float32 to reference positions
+    floor: float           # mean L1 error of merely rounding the reference positions to float32
+    inside: float          # fraction of reference positions inside the float32 box widened by 4 ulps
+    max_error: float
+    frame: Frame = field(repr=False)
+    reference: Frame = field(repr=False)
+
+    @property
+    def ratio(self) -> float:
+        return self.mean_error / self.floor if self.floor > 0 else (0.0 if self.mean_error == 0 else math.inf)
+
+    def row(self) -> str:
+        return (f"{self.name:<28} {self.hits:6d} {self.holes:5d} {self.false_hits:5d} "
+                f"{self.mean_error:10.3e} {self.floor:10.3e} {self.ratio:7.2f} {100 * self.inside:8.4f}%")
+
+
+def widened_contains(lo, hi, point, ulps=4.0):
+    """Per-pixel: is `point` inside [lo, hi] widened by `ulps` float32 ulps of each coordinate?"""
+    pad = ulps * ref.ulp(np.maximum(np.abs(lo), np.abs(hi)))
+    return np.all((point >= lo - pad) & (point <= hi + pad), axis=-1)
+
+
+def compare(scene: Scene, size=(64, 64), view: View | None = None, opts: Options = Options(),
+            name: str = "") -> Comparison:
+    """Render `scene` with `opts` (float32) and the float64 reference of the same rays; tally
+    holes, false hits, errors against the rounding floor and reference-in-box containment."""
+    frame = render(scene, opts, size=size, view=view)
+    refr = reference_frame(scene, frame)
+    both = frame.hit & refr.hit
+    err = np.abs(frame.position - refr.position).sum(axis=-1)[both]
+    floor = np.abs(ref.round32(refr.position) - refr.position).sum(axis=-1)[both]
+    inside = widened_contains(frame.box_min, frame.box_max, refr.position)[both]
+    return Comparison(name or str(scene.path), int(refr.hit.sum()), int((refr.hit & ~frame.hit).sum()),
+                      int((frame.hit & ~refr.hit).sum()), float(err.mean()) if err.size else 0.0,
+                      float(floor.mean()) if floor.size else 0.0,
+                      float(inside.mean()) if inside.size else 1.0,
+                      float(err.max()) if err.size else 0.0, frame, refr)
+
+
+TABLE_HEADER = (f"{'scene':<28} {'hits':>6} {'holes':>5} {'false':>5} {'mean err':>10} {'floor':>10} "
+                f"{'ratio':>7} {'inside':>9}")
+
+
+def write_failure_images(cmp: Comparison, directory) -> list:
+    """Actual, expected and difference hit masks as PNGs (red: hole, blue: false hit)."""
+    from PIL import Image
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    stem = "".join(ch if ch.isalnum() else "_" for ch in cmp.name)
+    a, e = cmp.frame.hit, cmp.reference.hit
+    diff = np.zeros(a.shape + (3,), np.uint8)
+    diff[e & a] = 80
+    diff[e & ~a] = (255, 0, 0)
+    diff[a & ~e] = (0, 0, 255)
+    out = []
+    for tag, img in (("actual", a.astype(np.uint8) * 255), ("expected", e.astype(np.uint8) * 255),
+                     ("diff", diff)):
+        path = directory / f"{stem}-{tag}.png"
+        Image.fromarray(img).save(path)
+        out.append(path)
+    return out
+
+
+def check(cmp: Comparison, directory, max_ratio=10.0, min_inside=0.9999) -> None:
+    """Assert the stress targets; on failure write the hit-mask images and say where."""
+    problems = []
+    if cmp.holes:
+        problems.append(f"{cmp.holes} holes")
+    if cmp.false_hits:
+        problems.append(f"{cmp.false_hits} false hits")
+    if cmp.ratio > max_ratio:
+        problems.append(f"mean error {cmp.mean_error:.3e} is {cmp.ratio:.2f}x the float32 floor "
+                        f"{cmp.floor:.3e} (allowed {max_ratio}x)")
+    if cmp.inside < min_inside:
+        problems.append(f"only {100 * cmp.inside:.4f}% of reference points inside the widened box "
+                        f"(need {100 * min_inside:.2f}%)")
+    if problems:
+        paths = write_failure_images(cmp, directory)
+        raise AssertionError(f"{cmp.name}: " + "; ".join(problems) + f"\n{TABLE_HEADER}\n{cmp.row()}\n"
+                             f"images: {', '.join(map(str, paths))}")

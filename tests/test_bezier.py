@@ -1,0 +1,403 @@
+"""Leaf kernels (tracer.bezier, intersect.slab) against the slow references in reference.py.
+
+Seeded random cases, many per test; grids P[i, j, xyz] in the references, the kernels'
+slot buffers buf[slot, xyz, k] with k = j*(m+1) + i.
+"""
+import inspect
+import math
+
+import numpy as np
+import pytest
+
+import reference as ref
+from tracer import bezier
+from tracer.bezier import control_box, evaluate, normal_at, split_u, split_v
+try:  # the ray record and slab test moved to their own module
+    from tracer import ray as _ray
+except ImportError:
+    from tracer import intersect as _ray
+make_ray, slab, RAY_LEN = _ray.make_ray, _ray.slab, _ray.RAY_LEN
+
+DTYPES = (np.float32, np.float64)
+EPS = {np.float32: 2.0 ** -24, np.float64: 2.0 ** -53}
+
+
+# ---- kernel adapters ------------------------------------------------------------------
+
+def to_buf(P, dtype, slots=2):
+    """A slot buffer holding grid P in slot 0."""
+    pts = ref.flat(P)
+    buf = np.zeros((slots, 3, len(pts)), dtype)
+    buf[0] = pts.T
+    return buf
+
+
+def from_buf(buf, slot, m, n):
+    return ref.grid(buf[slot].T.astype(np.float64), m, n)
+
+
+def call(fn, **available):
+    """Call a numba kernel with the arguments its signature names, taken from `available`.
+
+    The kernel signatures grow (rational patches added `ncoord`, `rational`, a 4th row of
+    work space); binding by name keeps these tests about behaviour, not argument order.
+    """
+    names = list(inspect.signature(fn.py_func).parameters)
+    missing = [k for k in names if k not in available]
+    if missing:
+        raise TypeError(f"{fn.py_func.__name__}{tuple(names)}: the test has no value for {missing}")
+    return fn(*(available[k] for k in names))
+
+
+def _takes_box(fn):
+    return "box" in inspect.signature(fn.py_func).parameters
+
+
+def kernel_split(P, axis, dtype, cubic=False):
+    """Split grid P at 1/2 with the kernel: (lower half, upper half, boxes written or None)."""
+    m, n = P.shape[0] - 1, P.shape[1] - 1
+    buf = to_buf(P, dtype)
+    box = np.full((2, 6), np.nan)
+    if cubic:
+        fn = bezier.split_u_cubic if axis == 0 else bezier.split_v_cubic
+    else:
+        fn = split_u if axis == 0 else split_v
+    call(fn, buf=buf, src=0, dst=1, m=m, n=n, ncoord=3, box=box)
+    written = box if cubic and _takes_box(fn) else None  # newer kernels box the halves as they split
+    return from_buf(buf, 0, m, n), from_buf(buf, 1, m, n), written
+
+
+def kernel_box(P, dtype):
+    buf = to_buf(P, dtype, 1)
+    box = np.zeros((1, 6))
+    call(control_box, buf=buf, slot=0, count=buf.shape[2], box=box)
+    return box[0]
+
+
+def _pts(P):
+    pts = np.ones((4, (P.shape[0]) * (P.shape[1])))  # row 3: weight 1 for kernels that read it
+    pts[:3] = ref.flat(P).T
+    return pts
+
+
+def kernel_evaluate(P, u, v):
+    m, n = P.shape[0] - 1, P.shape[1] - 1
+    out = np.zeros((4, 4))
+    call(evaluate, pts=_pts(P), m=m, n=n, u=u, v=v, ncoord=3, scratch=np.zeros((4, 16)), out=out)
+    return out[:, :3]
+
+
+def kernel_normal(P, u, v):
+    m, n = P.shape[0] - 1, P.shape[1] - 1
+    out = np.zeros(3)
+    ok = call(normal_at, pts=_pts(P), m=m, n=n, u=u, v=v, rational=False, ncoord=3,
+              scratch=np.zeros((4, 16)), d=np.zeros((6, 4)), out=out)
+    return ok, out
+
+
+def random_grid(rng, m, n, scale=1.0, centre=0.0):
+    return centre + scale * rng.uniform(-1, 1, (m + 1, n + 1, 3))
+
+
+def degrees(rng, count, top=15):
+    return [(int(rng.integers(1, top + 1)), int(rng.integers(1, top + 1))) for _ in range(count)]
+
+
+# ---- split ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("axis", [0, 1])
+def test_split_halves_reproduce_parent(axis):
+    """Lower half at s is the parent at s/2, upper half at s the parent at (1+s)/2 (float64)."""
+    rng = np.random.default_rng(10 + axis)
+    for m, n in degrees(rng, 60):
+        P = random_grid(rng, m, n, scale=rng.choice([1e-3, 1.0, 1e3]), centre=rng.uniform(-5, 5))
+        lo, hi, _ = kernel_split(P, axis, np.float64)
+        scale = np.abs(P).max()
+        tol = 64 * EPS[np.float64] * scale * max(m, n)  # rounding of the split and of the evaluation
+        for s, w in rng.uniform(0, 1, (8, 2)):
+            a, b = (s, w) if axis == 0 else (w, s)
+            for half, (pa, pb) in ((lo, (a / 2, b) if axis == 0 else (a, b / 2)),
+                                   (hi, ((1 + a) / 2, b) if axis == 0 else (a, (1 + b) / 2))):
+                np.testing.assert_allclose(ref.evaluate(half, a, b), ref.evaluate(P, pa, pb), rtol=0, atol=tol,
+                                           err_msg=f"degree {m}x{n}, axis {axis}, (s, w) = ({s}, {w})")
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+@pytest.mark.parametrize("axis", [0, 1])
+def test_split_is_exact_when_representable(dtype, axis):
+    """Small integer control points: every de Casteljau midpoint is representable, so the
+    kernel's halves equal the exact rational halves bit for bit (degrees up to 15)."""
+    rng = np.random.default_rng(20 + axis)
+    top = 2 ** 7 if dtype == np.float32 else 2 ** 30  # magnitude bits + 15 halvings fit the mantissa
+    for m, n in degrees(rng, 25):
+        P = rng.integers(-top, top + 1, (m + 1, n + 1, 3)).astype(np.float64)
+        lo, hi, _ = kernel_split(P, axis, dtype)
+        elo, ehi = ref.split(ref.exact(P), axis)
+        assert np.array_equal(lo, elo.astype(np.float64)), f"degree {m}x{n}"
+        assert np.array_equal(hi, ehi.astype(np.float64)), f"degree {m}x{n}"
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_split_error_within_level_ulps(dtype):
+    """General inputs: each level of midpoints rounds once, so a point of level k is within
+    k/2 ulps (of the largest coordinate) of the exact split of the same inputs."""
+    rng = np.random.default_rng(30)
+    for m, n in degrees(rng, 20):
+        P = random_grid(rng, m, n, scale=3.0).astype(dtype).astype(np.float64)
+        axis = int(rng.integers(2))
+        lo, hi, _ = kernel_split(P, axis, dtype)
+        elo, ehi = ref.split(ref.exact(P), axis)
+        ulp = ref.ulp(np.abs(P).max(), 24 if dtype == np.float32 else 53)
+        k = m if axis == 0 else n
+        for got, want in ((lo, elo), (hi, ehi)):
+            err = np.abs(got - want.astype(np.float64)).max()
+            assert err <= 0.5 * k * ulp + 1e-300, f"degree {m}x{n}: {err / ulp:.2f} ulps"
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+@pytest.mark.parametrize("axis", [0, 1])
+def test_cubic_split_bit_identical_to_generic(dtype, axis):
+    rng = np.random.default_rng(40 + axis)
+    for case in range(200):
+        spread = 10.0 ** rng.uniform(-6, 6, (4, 4, 3))  # mixed magnitudes stress the rounding
+        P = (rng.uniform(-1, 1, (4, 4, 3)) * spread).astype(dtype).astype(np.float64)
+        glo, ghi, _ = kernel_split(P, axis, dtype)
+        clo, chi, box = kernel_split(P, axis, dtype, cubic=True)
+        assert np.array_equal(glo, clo) and np.array_equal(ghi, chi), f"case {case}"
+        if box is not None:  # the boxes written during the split are those of the halves
+            assert np.array_equal(box[0], ref.box(glo)), f"case {case}: lower box"
+            assert np.array_equal(box[1], ref.box(ghi)), f"case {case}: upper box"
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+@pytest.mark.parametrize("degree", [(3, 3), (1, 1), (2, 5), (9, 7), (15, 15)])
+def test_sub_patch_boxes_inside_parent(dtype, degree):
+    """Random descents to beyond the working precision: every child's control box lies inside
+    its parent's. Exact in both precisions: fl(a + b) / 2 lies between a and b (no underflow)."""
+    m, n = degree
+    rng = np.random.default_rng(50 + m * 16 + n)
+    depth = 70 if dtype == np.float32 else 130
+    for trial in range(6 if m * n > 20 else 20):
+        P = random_grid(rng, m, n, scale=10.0 ** rng.uniform(-3, 3), centre=rng.uniform(-100, 100))
+        P = P.astype(dtype).astype(np.float64)
+        for level in range(depth):
+            parent = ref.box(P)
+            axis = int(rng.integers(2))
+            halves = kernel_split(P, axis, dtype, cubic=degree == (3, 3))[:2]
+            for h in halves:
+                child = kernel_box(h, dtype)
+                assert np.all(child[:3] >= parent[:3]) and np.all(child[3:] <= parent[3:]), (
+                    f"trial {trial} level {level}: child box {child} outside parent {parent}")
+            P = halves[int(rng.integers(2))]
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_control_box_is_min_max(dtype):
+    rng = np.random.default_rng(60)
+    for m, n in degrees(rng, 40):
+        P = random_grid(rng, m, n, scale=rng.uniform(0.1, 100)).astype(dtype).astype(np.float64)
+        assert np.array_equal(kernel_box(P, dtype), ref.box(P))
+
+
+# ---- evaluation and normals ----------------------------------------------------------------
+
+def test_evaluate_matches_bernstein_sum():
+    """Point and first derivatives and the twist, degrees up to 15x15, corners included."""
+    rng = np.random.default_rng(70)
+    for m, n in degrees(rng, 60) + [(15, 15), (1, 1), (15, 1), (1, 15)]:
+        P = random_grid(rng, m, n, scale=rng.choice([1e-4, 1.0, 1e4]))
+        scale = np.abs(P).max()
+        params = [(0.0, 0.0), (1.0, 1.0), (0.0, 1.0), (1.0, 0.0)] + [tuple(x) for x in rng.uniform(0, 1, (6, 2))]
+        for u, v in params:
+            got = kernel_evaluate(P, u, v)
+            want = ref.derivatives(P, u, v)
+            # derivative magnitudes grow by the degree per differentiation
+            for k, factor in enumerate((1, m, n, m * n)):
+                np.testing.assert_allclose(got[k], want[k], rtol=0, atol=1e-12 * scale * max(factor, 1) * (m + n),
+                                           err_msg=f"degree {m}x{n} at ({u}, {v}), row {k}")
+
+
+def test_normal_matches_cross_product():
+    rng = np.random.default_rng(80)
+    checked = 0
+    for m, n in degrees(rng, 60):
+        P = random_grid(rng, m, n)
+        for u, v in rng.uniform(0.02, 0.98, (5, 2)):
+            _, su, sv, _ = ref.derivatives(P, u, v)
+            cross = np.linalg.norm(np.cross(su, sv))
+            if cross < 1e-3 * np.linalg.norm(su) * np.linalg.norm(sv):
+                continue  # nearly parallel derivatives: the normal is ill-conditioned
+            ok, got = kernel_normal(P, u, v)
+            assert ok
+            np.testing.assert_allclose(got, ref.normal(P, u, v), atol=1e-9,
+                                       err_msg=f"degree {m}x{n} at ({u}, {v})")
+            checked += 1
+    assert checked > 200
+
+
+def collapse(P, edge):
+    """P with one boundary edge collapsed to a point: 'v0', 'v1' (rows j = 0, n) or 'u0', 'u1'."""
+    P = P.copy()
+    if edge == "v0":
+        P[:, 0] = P[0, 0]
+    elif edge == "v1":
+        P[:, -1] = P[0, -1]
+    elif edge == "u0":
+        P[0, :] = P[0, 0]
+    else:
+        P[-1, :] = P[-1, 0]
+    return P
+
+
+def _inside(edge, s, eps):
+    """(u, v) on the edge at position s, moved eps into the patch."""
+    return {"v0": (s, eps), "v1": (s, 1 - eps), "u0": (eps, s), "u1": (1 - eps, s)}[edge]
+
+
+@pytest.mark.parametrize("edge", ["v0", "v1", "u0", "u1"])
+def test_normal_at_collapsed_edge_is_interior_limit(edge):
+    """On a collapsed edge (and a hair inside it, where one derivative underflows the kernel's
+    threshold) the normal is the limit from inside: compare with the plain cross product of
+    the reference derivatives a little inside the patch."""
+    rng = np.random.default_rng(90 + ["v0", "v1", "u0", "u1"].index(edge))
+    from scenes import smooth_patch
+    checked = 0
+    for m, n in degrees(rng, 25, top=6) + [(3, 3), (15, 15)]:
+        P = collapse(smooth_patch(rng, max(m, 2), max(n, 2)), edge)
+        for s in rng.uniform(0.05, 0.95, 4):
+            inner = ref.normal(P, *_inside(edge, s, 1e-6))
+            outer = ref.normal(P, *_inside(edge, s, 1e-4))
+            if np.linalg.norm(inner - outer) > 1e-3:
+                continue  # the limit is not settled yet this close to the edge
+            for eps in (0.0, 1e-12, 2.0 ** -40):
+                ok, got = kernel_normal(P, *_inside(edge, s, eps))
+                assert ok, f"no normal at {edge} s={s} eps={eps}"
+                assert np.linalg.norm(got - inner) < 1e-3, (
+                    f"degree {P.shape[0] - 1}x{P.shape[1] - 1}, edge {edge}, s={s}, eps={eps}: "
+                    f"kernel {got}, interior limit {inner}")
+            checked += 1
+    assert checked > 40
+
+
+def test_teapot_collapsed_patches_normals():
+    """The teapot's lid and bottom patches (v = 0 collapsed): normals at the apex side."""
+    from scenes import grids_of, teapot
+    grids = grids_of(teapot())
+    collapsed = [P for P in grids if np.ptp(P[:, 0], axis=0).max() == 0]
+    assert len(collapsed) == 8
+    for P in collapsed:
+        for s in np.linspace(0.05, 0.95, 7):
+            inner = ref.normal(P, s, 1e-6)
+            for eps in (0.0, 1e-12):
+                ok, got = kernel_normal(P, s, eps)
+                assert ok and np.linalg.norm(got - inner) < 1e-3, (s, eps, got, inner)
+
+
+def test_normal_of_fully_degenerate_patch_is_reported():
+    P = np.ones((4, 4, 3))
+    ok, got = kernel_normal(P, 0.3, 0.6)
+    assert not ok and np.all(np.isfinite(got))
+
+
+# ---- ray against box -----------------------------------------------------------------------
+
+def kernel_slab(bx, origin, direction, frame=(0.0, 0.0, 0.0), t_min=0.0):
+    ray = np.zeros(RAY_LEN)
+    make_ray(ray, *map(float, origin), *map(float, direction), t_min, 0.0, 0.0)
+    return slab(np.asarray(bx, np.float64), *map(float, frame), ray)
+
+
+def test_slab_agrees_with_exact_test():
+    """Random boxes and rays, some direction components zero: the float64 slab agrees with the
+    exact rational test whenever the exact answer has a margin, and never yields NaN."""
+    rng = np.random.default_rng(100)
+    agreed = 0
+    for case in range(3000):
+        lo = rng.uniform(-10, 10, 3)
+        bx = np.concatenate([lo, lo + rng.uniform(0, 5, 3) * (rng.uniform(size=3) > 0.1)])
+        o = rng.uniform(-20, 20, 3)
+        d = rng.normal(size=3) * (rng.uniform(size=3) > 0.25)
+        if not d.any():
+            d[int(rng.integers(3))] = 1.0
+        ok, t_in, t_out = kernel_slab(bx, o, d)
+        assert not (math.isnan(t_in) or math.isnan(t_out)), f"case {case}: NaN"
+        eok, et_in, et_out = ref.slab_exact(bx, o, d)
+        if eok:
+            margin = (et_out - et_in) if et_out != math.inf else math.inf
+            if margin > 1e-9 * (1 + abs(float(et_in))):
+                assert ok, f"case {case}: exact hit [{float(et_in)}, {float(et_out)}] missed"
+                assert abs(t_in - float(et_in)) <= 1e-12 * (1 + abs(float(et_in)))
+                agreed += 1
+        elif et_in is None or et_in - et_out > 1e-9 * (1 + abs(float(et_out))):
+            assert not ok, f"case {case}: exact miss reported as a hit [{t_in}, {t_out}]"
+            agreed += 1
+    assert agreed > 1000
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_slab_ray_in_face_plane(axis):
+    """A ray with a zero component lying exactly in a face plane of the box hits (bounds
+    included); one float64 ulp outside that plane it misses."""
+    bx = np.array([-1.0, -2.0, -3.0, 1.0, 2.0, 3.0])
+    for side in (0, 3):
+        o = np.array([-5.0, -5.0, -5.0])
+        o[axis] = bx[side + axis]
+        d = np.array([1.0, 1.0, 1.0])
+        d[axis] = 0.0
+        ok, t_in, t_out = kernel_slab(bx, o, d)
+        assert ok and np.isfinite(t_in) and np.isfinite(t_out) and t_in <= t_out
+        outward = -1.0 if side == 0 else 1.0
+        o[axis] = np.nextafter(bx[side + axis], outward * np.inf)
+        ok, t_in, t_out = kernel_slab(bx, o, d)
+        assert not ok and not math.isnan(t_in) and not math.isnan(t_out)
+        d[axis] = -0.0  # a negative zero is a zero component too
+        o[axis] = bx[side + axis]
+        ok, _, _ = kernel_slab(bx, o, d)
+        assert ok
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_slab_axis_parallel_rays(axis):
+    """Rays along one axis (two zero components): containment in the other two slabs decides."""
+    bx = np.array([0.0, 0.0, 0.0, 1.0, 2.0, 4.0])
+    rng = np.random.default_rng(110 + axis)
+    for case in range(500):
+        o = rng.uniform(-1, 5, 3)
+        if case % 5 == 0:  # on a face or an edge of the box
+            others = [c for c in range(3) if c != axis]
+            o[others[case % 2]] = bx[others[case % 2] + 3 * (case % 3 == 0)]
+        d = np.zeros(3)
+        d[axis] = rng.choice([-1.0, 1.0]) * 10.0 ** rng.uniform(-3, 3)
+        ok, t_in, t_out = kernel_slab(bx, o, d)
+        eok, et_in, et_out = ref.slab_exact(bx, o, d)
+        assert not (math.isnan(t_in) or math.isnan(t_out))
+        assert ok == eok, f"case {case}: origin {o}, direction {d}"
+        if ok:
+            assert t_in == pytest.approx(float(et_in), abs=1e-12) and t_out >= float(et_out)
+
+
+def test_slab_with_frame_offset():
+    """Boxes are stored relative to a frame origin; the shift happens inside the slab."""
+    rng = np.random.default_rng(120)
+    for case in range(500):
+        frame = rng.uniform(-1e4, 1e4, 3).astype(np.float32).astype(np.float64)
+        local = np.sort(rng.uniform(-3, 3, (2, 3)), axis=0).astype(np.float32).astype(np.float64).reshape(-1)
+        world = np.concatenate([local[:3] + frame, local[3:] + frame])
+        o = frame + rng.uniform(-10, 10, 3)
+        d = rng.normal(size=3) * (rng.uniform(size=3) > 0.2)
+        if not d.any():
+            d[0] = 1.0
+        ok, t_in, _ = kernel_slab(local, o, d, frame)
+        eok, et_in, et_out = ref.slab_exact(world, o, d)
+        if eok and et_out - et_in > 1e-9:
+            assert ok and t_in == pytest.approx(float(et_in), rel=1e-12, abs=1e-12), f"case {case}"
+        elif et_in is None or et_in - et_out > 1e-9:
+            assert not ok, f"case {case}"
+
+
+def test_slab_t_min_clamps_entry():
+    bx = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0])
+    ok, t_in, t_out = kernel_slab(bx, (-1.0, 0.5, 0.5), (1.0, 0.0, 0.0), t_min=1.5)
+    assert ok and t_in == 1.5 and t_out >= 2.0
+    ok, _, _ = kernel_slab(bx, (-1.0, 0.5, 0.5), (1.0, 0.0, 0.0), t_min=2.5)
+    assert not ok
