@@ -249,3 +249,88 @@ def check(cmp: Comparison, directory, max_ratio=10.0, min_inside=0.9999) -> None
         paths = write_failure_images(cmp, directory)
         raise AssertionError(f"{cmp.name}: " + "; ".join(problems) + f"\n{TABLE_HEADER}\n{cmp.row()}\n"
                              f"images: {', '.join(map(str, paths))}")
+
+
+# ---- the stress catalogue ---------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Case:
+    """One stress scene: a builder (scenes are rebuilt per use, they are cheap), size and view."""
+
+    name: str
+    build: object
+    size: tuple
+    view: object  # a View, or a function of the built scene returning one
+
+    def scene_and_view(self):
+        scene = self.build()
+        view = self.view(scene) if callable(self.view) else self.view
+        return scene, view
+
+
+def seam_case(name, axis, t, seed, oblique=False) -> Case:
+    """A random smooth bicubic split in float64 at the non-dyadic parameter t along `axis`:
+    two patches meeting in a seam; the view is centred on the seam's midpoint."""
+    P = smooth_patch(np.random.default_rng(seed), 3, 3)
+    halves = split_pair(P, axis, t)
+    uv = (t, 0.5) if axis == 0 else (0.5, t)
+    target = ref.evaluate(P, *uv)
+    n = ref.normal(P, *uv)
+    along = ref.derivatives(P, *uv)[1 + axis]  # across the seam
+    direction = n + (1.5 * along / np.linalg.norm(along) if oblique else 0.25 * along / np.linalg.norm(along))
+    return Case(name, lambda: patches_scene(list(halves), name), (64, 64), aim(target, direction, 3.0, 12.0))
+
+
+def _framing(direction=(0.55, -0.8, 0.45), zoom=2.0):
+    """framing_view of the control points, zoomed in: the surface fills less than their box."""
+    from tracer.camera import framing_view
+
+    def view(scene):
+        v = framing_view(*scene.bounds(), direction=direction)
+        return View(v.eye, v.look_at, v.up, v.fov_deg / zoom)
+    return view
+
+
+def stress_cases() -> list:
+    """The numerical stress scenes (each <= 64 x 64)."""
+    far = (1e4, 1e4, 1e4)
+    rng_seeds = {"loop a": 3, "loop b": 4, "folded cube": 5, "deg 9x7": 6, "deg 15x15": 7}
+    return [
+        Case("teapot x1e-4", lambda: teapot(1e-4), (64, 64), transformed(TEAPOT_VIEW, 1e-4)),
+        Case("teapot x1e4", lambda: teapot(1e4), (64, 64), transformed(TEAPOT_VIEW, 1e4)),
+        Case("teapot +1e4", lambda: teapot(1.0, far), (64, 64), transformed(TEAPOT_VIEW, 1.0, far)),
+        Case("grazing silhouette body", teapot, (64, 64), lambda s: silhouette_view(s, axis=1, along=0)),
+        Case("grazing silhouette knob", teapot, (64, 64), lambda s: silhouette_view(s, axis=2, along=0)),
+        Case("grazing floor", lambda: teapot(floor=True), (64, 48),
+             View((-7.9, -7.9, 0.03), (8.0, 8.0, 0.0), (0.0, 0.0, 1.0), 30.0)),
+        Case("lid apex", teapot, (64, 64), LID_VIEW),
+        Case("lid apex zoom", teapot, (48, 48), aim((0.0, 0.0, 3.15), (0.6, -0.8, 1.0), 1.0, 1.0)),
+        Case("bottom apex", teapot, (64, 64), BOTTOM_VIEW),
+        Case("self-intersecting loop a", lambda: patches_scene([loop_patch(np.random.default_rng(rng_seeds["loop a"]))]),
+             (64, 64), _framing((0.2, -1.0, 0.3))),
+        Case("self-intersecting loop b", lambda: patches_scene([loop_patch(np.random.default_rng(rng_seeds["loop b"]))]),
+             (64, 64), _framing((-0.4, -1.0, 0.6))),
+        Case("folded random cube", lambda: patches_scene([random_patch(np.random.default_rng(rng_seeds["folded cube"]))]),
+             (64, 64), _framing()),
+        seam_case("seam u=0.3718", 0, 0.3718, 8),
+        seam_case("seam v=0.6183 oblique", 1, 0.6183, 9, oblique=True),
+        Case("degree 9x7", lambda: patches_scene([smooth_patch(np.random.default_rng(rng_seeds["deg 9x7"]), 9, 7)]),
+             (64, 64), _framing()),
+        Case("degree 15x15", lambda: patches_scene([smooth_patch(np.random.default_rng(rng_seeds["deg 15x15"]), 15, 15)]),
+             (48, 48), _framing()),
+    ]
+
+
+def run_case(case: Case, opts: Options = Options()) -> Comparison:
+    scene, view = case.scene_and_view()
+    return compare(scene, case.size, view, opts, name=case.name)
+
+
+def accuracy_table(opts: Options = Options()) -> str:
+    """The per-scene float32-against-float64 table of the stress catalogue."""
+    rows = [TABLE_HEADER] + [run_case(c, opts).row() for c in stress_cases()]
+    return "\n".join(rows)
+
+
+if __name__ == "__main__":
+    print(accuracy_table())
