@@ -259,6 +259,28 @@ def test_float64_kernel_matches_independent_reference(case):
     assert checked >= count * 0.8
 
 
+def test_reference_frame_matches_independent_reference_on_teapot():
+    """The float64 reference every image test trusts, checked on every pixel of a small side
+    view of the teapot (silhouettes included) against the independent intersection."""
+    scene = S.teapot()
+    grids = S.grids_of(scene)
+    frame = render(scene, Options(precision="f64"), size=(24, 24), view=S.SIDE_VIEW)
+    pixels = np.argwhere(np.ones(frame.hit.shape, bool))
+    checked = 0
+    for y, x in pixels:
+        o, d = frame.ray_origin[y, x], frame.ray_dir[y, x]
+        near = [P for P in grids if ref.slab_exact(ref.box(P), o, d)[0]]  # control boxes the ray meets
+        r = ref.intersect_scene(near, o, d)
+        if not r.certain:
+            continue
+        checked += 1
+        assert frame.hit[y, x] == r.hit, (x, y)
+        if r.hit:
+            assert frame.t[y, x] == pytest.approx(r.t, rel=1e-9), (x, y)
+            assert np.abs(frame.position[y, x] - r.point).max() <= 1e-9
+    assert checked >= 0.9 * len(pixels)
+
+
 # ---- termination criteria ---------------------------------------------------------------
 
 SMALL = (40, 40)
