@@ -204,12 +204,14 @@ def _newton(P, o, d, frame, u, v, scale, iters=60):
     return best if best_f <= 1e-12 * scale else None
 
 
-def intersect_patch(P, origin, direction, t_min=0.0, levels=12) -> RefHit:
+def intersect_patch(P, origin, direction, t_min=0.0, levels=12, max_leaves=512) -> RefHit:
     """Closest intersection of the ray origin + t*direction (t >= t_min) with patch P[i, j, :].
 
     Projects the grid onto the two planes through the ray, keeps the sub-patches whose
     projected control boxes contain the ray (de Casteljau quad splits, `levels` times), then
     polishes a root from the centre of every surviving leaf with Newton's method in float64.
+    More than `max_leaves` survivors at any level (a ray along a collapsed edge): 64 of them,
+    evenly spread, are polished and the answer is marked uncertain.
     """
     P = np.asarray(P, np.float64)
     o = np.asarray(origin, np.float64)
@@ -227,7 +229,7 @@ def intersect_patch(P, origin, direction, t_min=0.0, levels=12) -> RefHit:
         keep = ((lo[:, 0] <= slack) & (hi[:, 0] >= -slack) & (lo[:, 1] <= slack) & (hi[:, 1] >= -slack)
                 & (hi[:, 2] >= t_min * length - slack))
         stack, iv = stack[keep], iv[keep]
-        if len(stack) == 0 or level == levels:
+        if len(stack) == 0 or level == levels or len(stack) > max_leaves:
             break
         a, b = _split_all(stack, 1)
         mid = 0.5 * (iv[:, 0] + iv[:, 1])
@@ -241,6 +243,10 @@ def intersect_patch(P, origin, direction, t_min=0.0, levels=12) -> RefHit:
         stack = np.concatenate([a, b])
     best = RefHit(False)
     unresolved = []  # nearest distance along the ray of leaves Newton could not resolve
+    if len(stack) > max_leaves:
+        sample = np.linspace(0, len(stack) - 1, 64).astype(int)
+        unresolved.append(stack[..., 2].min() / length)
+        stack, iv = stack[sample], iv[sample]
     for q, (u0, u1, v0, v1) in zip(stack, iv):
         root = _newton(P, o, d, frame, 0.5 * (u0 + u1), 0.5 * (v0 + v1), scale)
         if root is None:
