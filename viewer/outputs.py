@@ -1,0 +1,40 @@
+"""Files the viewer writes: screenshots (PNG), the render's AOVs (npz), the inspected trace (JSON)."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from tracer.stats import json_safe
+
+from .picking import inspection_json
+
+
+def write_png(rgb: np.ndarray, path) -> Path:
+    """(H, W, 3) uint8, row 0 at the top."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(rgb, "RGB").save(path, format="PNG")
+    return path
+
+
+def write_aovs(frame, path) -> Path:
+    """The contract's per-pixel arrays of a finished frame (tracer.render.Frame.save_npz)."""
+    if frame is None:
+        raise ValueError("no finished render to export yet")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    frame.save_npz(path)
+    return path
+
+
+def write_trace(inspection, path) -> Path:
+    """The contract's trace JSON of the inspected pixel."""
+    if inspection is None:
+        raise ValueError("no pixel inspected yet: click the image first")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(json_safe(inspection_json(inspection)), indent=1))
+    return path

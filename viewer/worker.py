@@ -1,0 +1,216 @@
+"""Background rendering: one worker thread runs the newest job, tile by tile, cancellable.
+
+A job traces a coarse preview (1/8 resolution, same view), then the full frame with
+tiles ordered from the centre out, then (optionally) the float64 reference of the
+same rays. Tiles are shaded in the worker (tracer.shade) and reported as events;
+the UI thread drains the events and uploads the rects. The numba kernels release
+the GIL, so the UI thread keeps running while tiles are traced.
+"""
+from __future__ import annotations
+
+import math
+import os
+import queue
+import threading
+import time
+import traceback
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from tracer.camera import View, primary_rays
+from tracer.geometry import prepare
+from tracer.options import Options, option_fields
+from tracer.render import reference_frame, tiles, trace_rays
+from tracer.shade import shade
+
+COARSE = 8
+
+
+def trace_options(opts: Options) -> Options:
+    """Options with the display-only fields at their defaults: equal records trace equal images."""
+    defaults = Options()
+    return replace(opts, **{f.name: getattr(defaults, f.name) for f in option_fields()
+                            if f.metadata.get("group") == "Display"})
+
+
+def worker_threads(opts: Options) -> int:
+    """Render threads: as asked, or all cores but one (kept for the UI)."""
+    return opts.threads if opts.threads > 0 else max(1, (os.cpu_count() or 2) - 1)
+
+
+def centre_out(width: int, height: int, size: int) -> list:
+    """Tile order (indices into render.tiles) by distance of the tile centre from the image centre."""
+    rects = tiles(width, height, size)
+    d = [((y0 + y1 - height) ** 2 + (x0 + x1 - width) ** 2) for y0, y1, x0, x1 in rects]
+    return sorted(range(len(rects)), key=d.__getitem__)
+
+
+class GeometryCache:
+    """Prepared geometry per precision for the current scene (preparing is the slow part)."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._scene = None
+        self._geoms = {}
+
+    def adopt(self, scene, precision: str, geom) -> None:
+        """Make `scene` current with one geometry already prepared (by the loader)."""
+        with self._lock:
+            self._scene, self._geoms = scene, {precision: geom}
+
+    def get(self, scene, precision: str):
+        with self._lock:
+            if scene is not self._scene:
+                self._scene, self._geoms = scene, {}
+            if precision not in self._geoms:
+                self._geoms[precision] = prepare(scene, precision)
+            return self._geoms[precision]
+
+
+@dataclass(frozen=True)
+class Job:
+    id: int
+    scene: object
+    opts: Options
+    view: View
+    size: tuple            # (width, height)
+    reference: bool = True
+    frame: object = None    # a finished Frame: only trace its float64 reference
+
+
+def shade_async(frame, scene, mode: str, job_id: int, events: queue.Queue) -> threading.Thread:
+    """Re-shade a finished frame in another mode off the UI thread; posts ("shaded", job_id, (mode, rgb))."""
+    def run():
+        try:
+            h, w = frame.hit.shape
+            events.put(("shaded", job_id, (mode, shade(frame, scene, mode, rect=(0, h, 0, w)))))
+        except Exception as e:
+            events.put(("error", job_id, f"shading failed: {type(e).__name__}: {e}"))
+
+    thread = threading.Thread(target=run, name="psrt-shade", daemon=True)
+    thread.start()
+    return thread
+
+
+class RenderWorker:
+    """Runs the newest submitted job on a daemon thread; `events` is read by the UI thread."""
+
+    def __init__(self, geometry: GeometryCache):
+        self.geometry = geometry
+        self.events: queue.Queue = queue.Queue()
+        self._cond = threading.Condition()
+        self._job = None
+        self._cancel = threading.Event()
+        self._stop = False
+        self._thread = threading.Thread(target=self._run, name="psrt-render", daemon=True)
+        self._thread.start()
+
+    def submit(self, job: Job) -> None:
+        """Cancel whatever runs and queue `job` (an older queued job is dropped)."""
+        with self._cond:
+            self._cancel.set()
+            self._cancel = threading.Event()
+            self._job = job
+            self._cond.notify()
+
+    def cancel(self) -> None:
+        with self._cond:
+            self._cancel.set()
+            self._job = None
+
+    def stop(self, timeout: float = 2.0) -> None:
+        with self._cond:
+            self._stop = True
+            self._cancel.set()
+            self._cond.notify()
+        self._thread.join(timeout)
+
+    def _emit(self, kind, job, payload=None):
+        self.events.put((kind, job.id, payload))
+
+    def _phase(self, job, name):
+        self.events.put(("phase", job.id, (name, time.perf_counter())))
+
+    def _run(self):
+        while True:
+            with self._cond:
+                while self._job is None and not self._stop:
+                    self._cond.wait()
+                if self._stop:
+                    return
+                job, cancel = self._job, self._cancel
+                self._job = None
+            try:
+                if job.frame is not None:
+                    self._reference(job, job.frame, cancel)
+                else:
+                    self._render(job, cancel)
+            except Exception as e:  # reported in the UI; the worker lives on
+                detail = traceback.format_exc(limit=4)
+                self._emit("error", job, f"render failed: {type(e).__name__}: {e}\n{detail}")
+
+    def _render(self, job, cancel):
+        scene, opts, view = job.scene, job.opts, job.view
+        width, height = job.size
+        opts = opts.with_(threads=worker_threads(opts))
+        self._phase(job, "preparing")
+        geom = self.geometry.get(scene, opts.precision)
+        if cancel.is_set():
+            return self._emit("cancelled", job)
+        mode = opts.mode
+
+        # Coarse preview: same view at 1/COARSE resolution, shaded whole.
+        cw, ch = max(1, math.ceil(width / COARSE)), max(1, math.ceil(height / COARSE))
+        o, d = primary_rays(view, cw, ch, opts.precision)
+        self._phase(job, "coarse")
+        coarse = trace_rays(geom, opts.with_(tile_size=max(8, opts.tile_size)), o, d, view.pixel_angle(ch),
+                            cancel=cancel)
+        if cancel.is_set():
+            return self._emit("cancelled", job)
+        self._emit("coarse", job, (coarse, shade(coarse, scene, mode, rect=(0, ch, 0, cw)), COARSE))
+
+        # Full resolution, centre-out.
+        colour = np.zeros((height, width, 3), np.float32)
+        origins, dirs = primary_rays(view, width, height, opts.precision)
+
+        def on_tile(frame, rect):
+            if frame_box[0] is None:
+                frame_box[0] = frame
+                self._emit("frame_start", job, (frame, colour))
+            y0, y1, x0, x1 = rect
+            colour[y0:y1, x0:x1] = shade(frame, scene, mode, rect=rect)
+            self._emit("tile", job, rect)
+
+        frame_box = [None]
+        self._phase(job, "full")
+        frame = trace_rays(geom, opts, origins, dirs, view.pixel_angle(height), on_tile=on_tile,
+                           cancel=cancel, order=centre_out(width, height, opts.tile_size))
+        if cancel.is_set() or frame.tiles_done < frame.tiles_total:
+            return self._emit("cancelled", job)
+        frame.extras["view"] = view
+        self._emit("frame", job, frame)
+        if not job.reference:
+            return self._phase(job, "done")
+        self._reference(job, frame, cancel)
+
+    def _reference(self, job, frame, cancel):
+        """The float64 reference of exactly the frame's rays, for the error channels."""
+        scene = job.scene
+        geom64 = self.geometry.get(scene, "f64")
+        ref_box = [None]
+
+        def on_ref_tile(ref, rect):
+            if ref_box[0] is None:
+                ref_box[0] = ref
+                self._emit("ref_start", job, ref)
+            self._emit("ref_tile", job, rect)
+
+        self._phase(job, "reference")
+        start = time.perf_counter()
+        ref = reference_frame(scene, frame, geometry=geom64, cancel=cancel, on_tile=on_ref_tile)
+        if cancel.is_set() or ref.tiles_done < ref.tiles_total:
+            return self._emit("cancelled", job)
+        ref.seconds = time.perf_counter() - start
+        self._emit("reference", job, ref)
+        self._phase(job, "done")
