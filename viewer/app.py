@@ -1,0 +1,261 @@
+"""The viewer's window and loop: glfw + moderngl + Dear ImGui, one frame at a time.
+
+Frame: poll events -> backend new frames -> script inputs -> ImGui widgets -> apply worker
+events -> draw the view (image, overlay, outlines) -> blit it -> ImGui on top -> swap.
+Nothing raised inside a frame closes the window: it is logged and shown in the UI.
+"""
+from __future__ import annotations
+
+import ctypes
+import time
+import traceback
+
+from imgui_bundle import imgui, implot  # before glfw: imgui_bundle points glfw at its own library
+
+import glfw  # noqa: E402
+import moderngl  # noqa: E402
+
+from .display import Display  # noqa: E402
+from .frame_events import EventSink  # noqa: E402
+from .interaction import Interaction  # noqa: E402
+from .loader import open_scene  # noqa: E402
+from .overlay import Overlay  # noqa: E402
+from .state import AppState, load_persistent, save_persistent  # noqa: E402
+from .ui_camera import ui_camera  # noqa: E402
+from .ui_display import ui_display  # noqa: E402
+from .ui_help import ui_help  # noqa: E402
+from .ui_inspector import ui_inspector  # noqa: E402
+from .ui_log import ui_error, ui_log  # noqa: E402
+from .ui_outputs import ui_outputs  # noqa: E402
+from .ui_overlays import ui_overlays  # noqa: E402
+from .ui_scene import ui_scene  # noqa: E402
+from .ui_stats import ui_stats  # noqa: E402
+from .ui_tracer import ui_tracer  # noqa: E402
+from .worker import GeometryCache, RenderWorker  # noqa: E402
+
+PANEL_WIDTH = 400
+DEFAULT_WINDOW = (1240, 780)
+MIN_WINDOW_HEIGHT = 720
+TARGET_FPS = 60.0
+IDLE_WAIT = 0.1
+
+
+class Viewer:
+    """One window, its GL context, the state and the render worker."""
+
+    def __init__(self, size=None, window_size=None, persist=True, title="psrt view"):
+        self.state = AppState(fixed_size=tuple(size) if size else None)
+        self.persist = persist
+        if persist:
+            load_persistent(self.state)
+        if not glfw.init():
+            raise RuntimeError("glfw.init failed: no display? (set DISPLAY, e.g. run under Xvfb)")
+        for hint, value in ((glfw.CONTEXT_VERSION_MAJOR, 3), (glfw.CONTEXT_VERSION_MINOR, 3),
+                            (glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE), (glfw.OPENGL_FORWARD_COMPAT, True)):
+            glfw.window_hint(hint, value)
+        if window_size is None:
+            window_size = ((size[0] + PANEL_WIDTH, max(size[1], MIN_WINDOW_HEIGHT)) if size else DEFAULT_WINDOW)
+        self.window = glfw.create_window(int(window_size[0]), int(window_size[1]), title, None, None)
+        if not self.window:
+            glfw.terminate()
+            raise RuntimeError("glfw could not create an OpenGL 3.3 core window")
+        glfw.set_window_pos(self.window, 0, 0)  # no window manager on Xvfb
+        glfw.make_context_current(self.window)
+        glfw.swap_interval(0)
+        self.ctx = moderngl.create_context()
+        imgui.create_context()
+        implot.create_context()
+        io = imgui.get_io()
+        io.set_ini_filename("")
+        self.window_address = ctypes.cast(self.window, ctypes.c_void_p).value
+        imgui.backends.glfw_init_for_opengl(self.window_address, True)
+        imgui.backends.opengl3_init("#version 330")
+        glfw.set_drop_callback(self.window, self._on_drop)
+        self.display = Display(self.ctx)
+        if self.display.error:
+            self.state.log(self.display.error, "error")
+        self.geometry = GeometryCache()
+        self.worker = RenderWorker(self.geometry)
+        self.overlay = Overlay()
+        self.events = EventSink(self)
+        self.interaction = Interaction(self)
+        self.region = (0, 0, 0, 0)
+        self.last_frame_time = time.perf_counter()
+        self.closed = False
+
+    # --- files ----------------------------------------------------------------------------
+    def _on_drop(self, _window, paths):
+        if paths:
+            self.state.pending_open = paths[0]
+
+    def open(self, path) -> bool:
+        ok = open_scene(self.state, self.geometry, path)
+        if ok:
+            self.overlay.reset(self.state.settings.overlay, self.state.image_size)
+            self.display.set_boxes(None)
+        return ok
+
+    # --- layout ---------------------------------------------------------------------------
+    def _layout(self) -> None:
+        """Image region left of the panel; the image size follows it unless fixed."""
+        win_w, win_h = glfw.get_window_size(self.window)
+        avail_w, avail_h = max(win_w - PANEL_WIDTH, 1), max(win_h, 1)
+        size = self.state.fixed_size or (avail_w, avail_h)
+        if self.state.fixed_size:
+            scale = min(1.0, avail_w / size[0], avail_h / size[1])  # shrink to fit, never enlarge
+            self.region = (0, 0, size[0] * scale, size[1] * scale)
+        else:
+            self.region = (0, 0, avail_w, avail_h)
+        if tuple(size) != tuple(self.state.image_size):
+            self.state.image_size = tuple(size)
+            self.display.resize(*size)
+            self.overlay.reset(self.state.settings.overlay, size)
+            self.state.render.key = None  # re-render at the new size
+
+    # --- widgets --------------------------------------------------------------------------
+    def _panels(self) -> None:
+        st = self.state
+        win_w, win_h = glfw.get_window_size(self.window)
+        imgui.set_next_window_pos((win_w - PANEL_WIDTH, 0))
+        imgui.set_next_window_size((PANEL_WIDTH, win_h))
+        flags = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+        imgui.begin("psrt", None, flags)
+        if self.display.error:
+            imgui.text_colored((1.0, 0.35, 0.3, 1.0), "shader error (the image cannot be drawn):")
+            imgui.text_wrapped(self.display.error)
+            if imgui.button("Reload shaders"):
+                if self.display.reload_shaders():
+                    st.log("shaders reloaded")
+        ui_error(st)
+        ui_scene(st)
+        if ui_camera(st):
+            self.interaction.view_changed()
+        ui_tracer(st)
+        if ui_display(st):
+            pass  # the mode is compared with the shown colours in EventSink.request
+        before = st.settings.overlay
+        if ui_overlays(st) and st.settings.overlay != before:
+            self.events.refill_overlay()
+        ui_stats(st)
+        if ui_inspector(st):
+            self.interaction.update_outlines()
+        ui_outputs(st)
+        ui_log(st)
+        imgui.end()
+        ui_help(st)
+        self.interaction.hover_tooltip()
+        if st.error:
+            x, y, w, h = self.region
+            imgui.set_next_window_pos((x + 8, y + h - 8), imgui.Cond_.always, (0.0, 1.0))
+            imgui.set_next_window_bg_alpha(0.8)
+            imgui.begin("##error-banner", None, imgui.WindowFlags_.no_decoration | imgui.WindowFlags_.no_inputs |
+                        imgui.WindowFlags_.always_auto_resize | imgui.WindowFlags_.no_focus_on_appearing |
+                        imgui.WindowFlags_.no_nav)
+            imgui.text_colored((1.0, 0.35, 0.3, 1.0), st.error.splitlines()[0][:160])
+            imgui.end()
+
+    # --- one frame ------------------------------------------------------------------------
+    def frame(self, script=None) -> None:
+        st = self.state
+        if script is None and st.render.phase in ("idle", "done", "error", "cancelled") \
+                and self.worker.events.empty():
+            glfw.wait_events_timeout(IDLE_WAIT)  # idle: sleep until input
+        else:
+            glfw.poll_events()
+        imgui.backends.opengl3_new_frame()
+        imgui.backends.glfw_new_frame()
+        if script is not None:
+            script.inject(self)
+        imgui.new_frame()
+        try:
+            if st.pending_open:
+                path, st.pending_open = st.pending_open, None
+                self.open(path)
+            self._layout()
+            self.events.drain()
+            self.interaction.handle_input()
+            self._panels()
+            self.events.request()
+            self.events.update_overlay()
+        except Exception as e:  # a bug in one frame must not close the window
+            st.log(f"internal error: {type(e).__name__}: {e}\n{traceback.format_exc(limit=5)}", "error")
+        imgui.render()
+        fb_size = glfw.get_framebuffer_size(self.window)
+        self.ctx.screen.use()
+        self.ctx.viewport = (0, 0, *fb_size)
+        self.ctx.clear(0.08, 0.08, 0.09)
+        try:
+            self.display.draw_view(st.settings, self.events.overlay_uniforms(), self.interaction.outline_view())
+            win_w, _ = glfw.get_window_size(self.window)
+            ratio = fb_size[0] / max(win_w, 1)
+            self.display.blit(tuple(v * ratio for v in self.region), fb_size)
+            if st.pending_screenshot:
+                path, st.pending_screenshot = st.pending_screenshot, None
+                from .outputs import write_png
+                st.log(f"wrote {write_png(self.display.read_view(), path)}")
+        except Exception as e:
+            st.log(f"drawing failed: {type(e).__name__}: {e}", "error")
+        imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
+        if script is not None:
+            script.after_draw(self, fb_size)
+        glfw.swap_buffers(self.window)
+        now = time.perf_counter()
+        dt = now - self.last_frame_time
+        if dt < 1.0 / TARGET_FPS:
+            time.sleep(1.0 / TARGET_FPS - dt)
+            now = time.perf_counter()
+        st.fps = 0.9 * st.fps + 0.1 / max(now - self.last_frame_time, 1e-6) if st.fps else 1.0 / max(dt, 1e-6)
+        self.last_frame_time = now
+        st.frame_count += 1
+
+    def should_close(self) -> bool:
+        return self.closed or glfw.window_should_close(self.window)
+
+    def close(self) -> None:
+        self.worker.stop()
+        if self.persist:
+            save_persistent(self.state)
+        imgui.backends.opengl3_shutdown()
+        imgui.backends.glfw_shutdown()
+        implot.destroy_context()
+        imgui.destroy_context()
+        glfw.destroy_window(self.window)
+        glfw.terminate()
+
+
+def run(scene_path=None, max_frames=None, *, size=None, script=None, opts=None, settings=None,
+        persist=None) -> int:
+    """Open the viewer on a scene and run until the window closes (or the script is done).
+
+    max_frames: an upper bound on frames (tests); script: a viewer.script.Script of actions and
+    outputs; opts/settings: the starting Options and ViewSettings. Returns the exit code.
+    """
+    if persist is None:
+        persist = script is None and max_frames is None
+    viewer = Viewer(size=size, persist=persist)
+    try:
+        if opts is not None:
+            viewer.state.opts = opts
+        if settings is not None:
+            viewer.state.settings = settings
+        if scene_path:
+            viewer.open(scene_path)
+        if script is not None:
+            script.start(viewer)
+        while not viewer.should_close():
+            viewer.frame(script)
+            if script is not None and script.done:
+                break
+            if max_frames is not None and viewer.state.frame_count >= max_frames:
+                if script is not None:
+                    script.give_up(viewer)
+                break
+        return script.exit_code if script is not None else 0
+    finally:
+        viewer.close()
+
+
+def main_from_cli(args, opts) -> int:
+    """The hook tracer/cli.py calls for `psrt view` (args from its parser, opts from its flags)."""
+    from .cli_view import run_view
+    return run_view(args, opts)

@@ -1,0 +1,140 @@
+"""The `psrt view` subcommand: the interactive viewer, or a scripted run of it.
+
+tracer/cli.py wires it in with `add_view_command(subparsers)` (sets func=run_view) and
+dispatches with `args.func(args)`; its older hook, `viewer.app.main_from_cli(args, opts)`,
+also works (then the script flags are absent and default to off). Nothing that loads glfw
+or OpenGL is imported before the command runs.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+
+def _pair(text: str, sep: str, what: str):
+    try:
+        a, b = (int(v) for v in text.lower().split(sep))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+    return a, b
+
+
+def _size(text):
+    w, h = _pair(text, "x", "WIDTHxHEIGHT, e.g. 128x128")
+    if not (1 <= w <= 16384 and 1 <= h <= 16384):
+        raise argparse.ArgumentTypeError(f"image size {text!r} must be between 1x1 and 16384x16384")
+    return w, h
+
+
+def _click(text):
+    return _pair(text, ",", "X,Y in image pixels (column, row; row 0 at the top)")
+
+
+def add_view_command(subparsers) -> argparse.ArgumentParser:
+    """Add `view` to an argparse subparsers object; returns the subparser.
+
+    Tracer option flags (and --set) come from tracer.cli.add_option_flags, as for `render`;
+    --set also takes the viewer's own settings (overlay=error, exposure=1, ...).
+    """
+    from tracer.cli import add_option_flags
+
+    p = subparsers.add_parser(
+        "view", help="open the interactive viewer (or run it scripted)",
+        description="Open the interactive debugger window on a scene. With --frames, --click, --screenshot, "
+                    "--dump-inspector... the real window runs the given actions, writes the outputs once the "
+                    "render has finished, and exits (--frames is only an upper bound).")
+    p.add_argument("scene", nargs="?", help="scene .json or patch .bpt file")
+    p.add_argument("--size", type=_size, metavar="WxH",
+                   help="fixed image size in pixels (default: follow the window)")
+    add_option_flags(p)
+    add_script_flags(p)
+    p.set_defaults(func=run_view)
+    return p
+
+
+def add_script_flags(p) -> None:
+    p.add_argument("--at", action="append", default=[], metavar="WHEN:OPTION=VALUE",
+                   help="change an option at UI frame WHEN, or WHEN=mid-render: while full tiles arrive")
+    p.add_argument("--click", type=_click, metavar="X,Y", help="click image pixel X,Y once the render is done")
+    p.add_argument("--load", metavar="FILE", help="open FILE in the running viewer after the first render")
+    p.add_argument("--frames", type=int, metavar="N", help="stop after at most N UI frames")
+    p.add_argument("--screenshot", metavar="PNG", help="write the view (image, overlays, box outlines)")
+    p.add_argument("--window-screenshot", metavar="PNG", help="write the whole window, panels included")
+    p.add_argument("--dump-inspector", metavar="JSON", help="write the clicked pixel's trace (contract JSON)")
+    p.add_argument("--aov", metavar="NPZ", help="write the final render's per-pixel arrays")
+    p.add_argument("--status", metavar="JSON", help="write what happened (phases, timings, errors) as JSON")
+    p.add_argument("--wait-reference", action="store_true",
+                   help="also wait for the float64 reference before the outputs")
+
+
+SCRIPT_DEFAULTS = {"at": [], "click": None, "load": None, "frames": None, "screenshot": None,
+                   "window_screenshot": None, "dump_inspector": None, "aov": None, "status": None,
+                   "wait_reference": False, "set": [], "size": None}
+
+
+def _scripted(args) -> bool:
+    return any((args.frames is not None, args.screenshot, args.window_screenshot, args.dump_inspector,
+                args.click, args.aov, args.status, args.at, args.load))
+
+
+def _flag_options(args):
+    """Options from the generated option flags (opt_<name> attributes), without --set."""
+    from dataclasses import replace
+
+    from tracer.options import Options, option_fields
+
+    return replace(Options(), **{f.name: getattr(args, f"opt_{f.name}") for f in option_fields()
+                                 if getattr(args, f"opt_{f.name}", None) is not None})
+
+
+def run_view(args, opts=None) -> int:
+    """Run the viewer for parsed `psrt view` arguments; returns the exit code.
+
+    opts: tracer options already built by the caller (tracer/cli.py's hook); otherwise they
+    come from the option flags. --set assignments go to the options or the viewer settings.
+    """
+    from viewer.script import Script, parse_at
+    from viewer.state import ViewSettings, assign
+
+    for name, default in SCRIPT_DEFAULTS.items():  # a parser without the script flags still works
+        if not hasattr(args, name):
+            setattr(args, name, default)
+    try:
+        opts = opts if opts is not None else _flag_options(args)
+        settings = ViewSettings()
+        for text in args.set:
+            opts, settings = assign(opts, settings, text)  # fail before any window opens
+        at = [parse_at(text) for text in args.at]
+        for _, text in at:
+            assign(opts, settings, text)
+    except ValueError as e:
+        print(f"psrt view: error: {e}", file=sys.stderr)
+        return 2
+    if args.scene and not os.path.exists(args.scene):
+        print(f"psrt view: error: {args.scene}: no such file", file=sys.stderr)
+        return 2
+    if args.dump_inspector and not args.click:
+        print("psrt view: error: --dump-inspector needs --click X,Y", file=sys.stderr)
+        return 2
+    from viewer.app import run
+
+    script = None
+    if _scripted(args):
+        script = Script(at=at, click=args.click, load=args.load, screenshot=args.screenshot,
+                        window_screenshot=args.window_screenshot, dump_inspector=args.dump_inspector,
+                        aov=args.aov, status=args.status, wait_reference=True if args.wait_reference else None)
+    return run(args.scene, args.frames, size=args.size, script=script, opts=opts, settings=settings)
+
+
+def main(argv=None) -> int:
+    """`python -m viewer.cli_view SCENE ...`: the view command on its own."""
+    parser = argparse.ArgumentParser(prog="psrt")
+    add_view_command(parser.add_subparsers(dest="command", required=True))
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(["view"] + argv)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

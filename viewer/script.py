@@ -1,0 +1,192 @@
+"""Scripted runs of the real window (`psrt view --frames/--click/--set/--screenshot ...`).
+
+The script applies its actions in order (settings, mid-render changes, the click, a file to
+load), waits for the render to finish, writes its outputs and stops. The click goes through
+ImGui's input queue, the same path as a real mouse click. `frames` is only an upper bound.
+"""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field, fields
+
+from imgui_bundle import imgui
+
+from tracer.stats import json_safe
+
+from . import outputs
+from .picking import pixel_to_window
+from .state import assign
+
+EXIT_OK, EXIT_BAD_ARGS, EXIT_TIMEOUT, EXIT_CLICK = 0, 2, 3, 4
+MID_RENDER = "mid-render"
+
+
+def parse_at(text: str):
+    """'N:name=value' (at UI frame N) or 'mid-render:name=value' (once full tiles are arriving)."""
+    when, sep, assignment = text.partition(":")
+    if not sep or "=" not in assignment:
+        raise ValueError(f"--at expects FRAME:option=value or {MID_RENDER}:option=value, got {text!r}")
+    if when != MID_RENDER:
+        try:
+            when = int(when)
+        except ValueError:
+            raise ValueError(f"--at {text!r}: {when!r} is neither a frame number nor {MID_RENDER!r}") from None
+    return when, assignment
+
+
+@dataclass
+class Script:
+    sets: list = field(default_factory=list)        # "name=value", before the first render
+    at: list = field(default_factory=list)          # (frame or MID_RENDER, "name=value")
+    click: tuple | None = None                      # image pixel (column, row)
+    load: str | None = None                         # opened once the first render has finished
+    screenshot: str | None = None                   # the view (image, overlay, outlines), PNG
+    window_screenshot: str | None = None            # the whole window, PNG
+    dump_inspector: str | None = None               # the clicked pixel's trace JSON
+    aov: str | None = None                          # the final render's AOVs, npz
+    status: str | None = None                       # what happened, JSON (for tests)
+    wait_reference: bool | None = None              # None: when the overlay channel needs it
+    done: bool = False
+    exit_code: int = EXIT_OK
+    applied: list = field(default_factory=list)
+    _pending_at: list = field(default_factory=list)
+    _click_stage: int = 0
+    _click_pos: tuple = (0.0, 0.0)
+    _loaded_at: int | None = None
+    _started: float = 0.0
+
+    def start(self, viewer) -> None:
+        st = viewer.state
+        self._started = time.perf_counter()
+        for text in self.sets:
+            st.opts, st.settings = assign(st.opts, st.settings, text)
+        self._pending_at = list(self.at)
+
+    # --- per frame ------------------------------------------------------------------------
+    def _apply_due(self, viewer) -> None:
+        st, r = viewer.state, viewer.state.render
+        mid = r.phase == "full" and 0 < r.tiles_done < max(r.tiles_total, 1)
+        # A render too quick to catch mid-way: apply anyway (the status records the phase).
+        late = r.phase in ("reference", "done", "error")
+        for item in list(self._pending_at):
+            when, text = item
+            if (when == MID_RENDER and (mid or late)) or (when != MID_RENDER and st.frame_count >= when):
+                self._pending_at.remove(item)
+                try:
+                    st.opts, st.settings = assign(st.opts, st.settings, text)
+                except ValueError as e:
+                    st.log(str(e), "error")
+                self.applied.append({"frame": st.frame_count, "set": text, "phase": r.phase,
+                                     "tiles_done": r.tiles_done, "tiles_total": r.tiles_total})
+
+    def inject(self, viewer) -> None:
+        """Called after the backends' new frame and before ImGui's: actions and mouse input."""
+        st, io = viewer.state, imgui.get_io()
+        self._apply_due(viewer)
+        ready = not self._pending_at and self.render_ready(viewer)
+        if self.click is not None and self._click_stage < 5:
+            if self._click_stage == 0 and ready:
+                x, y = self.click
+                w, h = st.image_size
+                if not (0 <= x < w and 0 <= y < h):
+                    st.log(f"--click {x},{y} is outside the {w}x{h} image", "error")
+                    self.exit_code, self._click_stage = EXIT_CLICK, 5
+                    return
+                self._click_pos = pixel_to_window(viewer.region, st.image_size, x, y)
+                self._click_stage = 1
+            elif self._click_stage >= 1:
+                io.add_mouse_pos_event(*self._click_pos)  # the glfw backend overwrites it each frame
+                if self._click_stage in (2, 3):
+                    io.add_mouse_button_event(0, self._click_stage == 2)
+                if self._click_stage == 4:
+                    ins = st.inspector
+                    if ins is None or tuple(ins.trace.pixel) != tuple(self.click):
+                        st.log(f"scripted click at {self.click} did not reach the inspector", "error")
+                        self.exit_code = EXIT_CLICK
+                self._click_stage += 1
+            return
+        if self.load is not None and self._loaded_at is None and ready:
+            st.pending_open, self._loaded_at = self.load, st.frame_count
+
+    def render_ready(self, viewer) -> bool:
+        """The render of the current state has finished (and its reference, when needed)."""
+        st, r = viewer.state, viewer.state.render
+        if st.frame_count < 1:
+            return False  # no layout yet
+        key = viewer.events.desired_key()
+        if key is None:
+            return st.scene is None
+        if r.phase == "error":
+            return r.key == key
+        if r.key != key or r.frame is None or r.phase not in ("reference", "done") \
+                or r.tiles_done < r.tiles_total or viewer.events.shaded_mode != st.opts.mode:
+            return False
+        need = self.wait_reference
+        if need is None:
+            ch = viewer.overlay.channel if st.settings.overlay != "none" else None
+            need = bool(ch is not None and ch.needs_reference)
+        return not need or (r.phase == "done" and r.reference is not None and not viewer.overlay.dirty_range)
+
+    def finished(self, viewer) -> bool:
+        if self._pending_at or (self.click is not None and self._click_stage < 5):
+            return False
+        if self.load is not None and (self._loaded_at is None or viewer.state.frame_count < self._loaded_at + 2):
+            return False
+        return self.render_ready(viewer)
+
+    def after_draw(self, viewer, fb_size) -> None:
+        """After the view and ImGui are drawn, before the swap: outputs when everything is done."""
+        if not self.done and self.finished(viewer):
+            self.write_outputs(viewer, fb_size)
+            self.done = True
+
+    def give_up(self, viewer) -> None:
+        viewer.state.log(f"stopped after {viewer.state.frame_count} frames before the script finished", "error")
+        self.exit_code = EXIT_TIMEOUT
+        self.write_outputs(viewer, None)
+        self.done = True
+
+    # --- outputs --------------------------------------------------------------------------
+    def write_outputs(self, viewer, fb_size) -> None:
+        st = viewer.state
+        jobs = [(self.screenshot, lambda p: outputs.write_png(viewer.display.read_view(), p)),
+                (self.window_screenshot,
+                 lambda p: outputs.write_png(viewer.display.read_window(fb_size), p) if fb_size else None),
+                (self.dump_inspector, lambda p: outputs.write_trace(st.inspector, p)),
+                (self.aov, lambda p: outputs.write_aovs(st.render.frame, p))]
+        for path, write in jobs:
+            if path:
+                try:
+                    write(path)
+                except Exception as e:
+                    st.log(f"cannot write {path}: {type(e).__name__}: {e}", "error")
+                    self.exit_code = self.exit_code or EXIT_BAD_ARGS
+        if self.status:
+            with open(self.status, "w") as f:
+                json.dump(json_safe(self.status_dict(viewer)), f, indent=1, default=str)
+
+    def status_dict(self, viewer) -> dict:
+        st, r = viewer.state, viewer.state.render
+        ins = st.inspector
+        return {
+            "exit_code": self.exit_code, "frames": st.frame_count,
+            "seconds": time.perf_counter() - self._started, "fps": st.fps,
+            "scene": st.scene_path, "n_patches": st.scene.n_patches if st.scene else None,
+            "error": st.error, "messages": [{"level": lvl, "text": t} for _, lvl, t in st.messages],
+            "image_size": list(st.image_size), "region": list(viewer.region),
+            "options": {f.name: getattr(st.opts, f.name) for f in fields(st.opts)},
+            "settings": {f.name: getattr(st.settings, f.name) for f in fields(st.settings)},
+            "render": {"job": r.job, "phase": r.phase, "tiles_done": r.tiles_done, "tiles_total": r.tiles_total,
+                       "seconds": r.seconds, "ref_seconds": r.ref_seconds, "stats": r.stats,
+                       "error_stats": r.error_stats, "shaded_mode": viewer.events.shaded_mode,
+                       "traced_options": ({f.name: getattr(r.key[1], f.name) for f in fields(r.key[1])}
+                                          if r.key else None)},
+            "renders": {"started": st.renders_started, "finished": st.renders_finished,
+                        "cancelled": st.renders_cancelled, "start_latencies": st.latencies},
+            "applied": self.applied,
+            "overlay": {k: v for k, v in st.overlay_info.items() if k != "lut"},
+            "inspector": ({"pixel": list(ins.trace.pixel), "hit": bool(ins.trace.hit), "patch": int(ins.trace.patch),
+                           "boxes": len(ins.trace.steps_f), "error": ins.error} if ins else None),
+            "shader_error": viewer.display.error,
+        }

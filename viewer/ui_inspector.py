@@ -1,0 +1,127 @@
+"""Inspector panel: the clicked pixel's hit and its subdivision trace (Dammertz figures 2.10-2.11)."""
+from __future__ import annotations
+
+import numpy as np
+from imgui_bundle import imgui, implot
+
+from tracer.intersect import EVENT_NAMES
+from tracer.plot import EVENT_COLOURS, OPTIMUM_COLOUR
+
+PLOT_HEIGHT = 230
+TABLE_HEIGHT = 200
+
+
+def _rgba(rgb255, a=1.0):
+    return (rgb255[0] / 255.0, rgb255[1] / 255.0, rgb255[2] / 255.0, a)
+
+
+def _vec(v) -> str:
+    return ", ".join(f"{x:.6g}" for x in v)
+
+
+def summary_rows(ins) -> list:
+    t = ins.trace
+    rows = [("pixel", f"{t.pixel[0]}, {t.pixel[1]}"), ("hit", "yes" if t.hit else "miss")]
+    if t.hit:
+        rows += [("patch", str(t.patch)), ("t", f"{t.t:.9g}"), ("position", _vec(t.position)),
+                 ("normal", _vec(t.normal)), ("uv", _vec(t.uv)),
+                 ("box size", f"{float(np.sum(t.box_max - t.box_min)):.3g} (L1)")]
+    rows.append(("effort", f"{t.effort} box tests"))
+    if ins.error is not None:
+        rows.append(("error", f"{ins.error:.3e} (L1 vs float64)"))
+    elif ins.reference is not None and ins.reference.hit != t.hit:
+        rows.append(("error", "hole (float64 hits)" if ins.reference.hit else "false hit (float64 misses)"))
+    rows.append(("boxes", f"{len(t.steps_f)}" + (" (trace truncated)" if t.truncated else "")))
+    return rows
+
+
+def diameter_plot(ins) -> bool:
+    """Box L1 diameter over box index, the optimum d(n) = s 2^(-n/2), hits marked; drag the step."""
+    t = ins.trace
+    k = len(t.steps_f)
+    if k == 0 or not implot.begin_plot("##diameters", (-1, PLOT_HEIGHT)):
+        return False
+    xs = np.arange(k, dtype=np.float64)
+    ys = np.maximum(t.diameters.astype(np.float64), 1e-300)
+    implot.setup_axes("box index", "L1 diameter")
+    implot.setup_axis_scale(implot.ImAxis_.y1, implot.Scale_.log10)
+    implot.plot_line("diameter", xs, ys, implot.Spec(line_color=(0.6, 0.6, 0.6, 1.0)))
+    implot.plot_line("optimum", xs, ys[0] * 0.5 ** (xs / 2.0), implot.Spec(line_color=_rgba(OPTIMUM_COLOUR)))
+    events = t.steps_i[:, 2]
+    for code, name in enumerate(EVENT_NAMES):
+        sel = events == code
+        if sel.any():
+            implot.plot_scatter(name, xs[sel], ys[sel],
+                                implot.Spec(marker=implot.Marker_.circle, marker_size=2.5,
+                                            marker_fill_color=_rgba(EVENT_COLOURS[name]),
+                                            marker_line_color=_rgba(EVENT_COLOURS[name])))
+    h = t.hit_step()
+    if h >= 0:
+        implot.plot_scatter("reported hit", xs[[h]], ys[[h]],
+                            implot.Spec(marker=implot.Marker_.circle, marker_size=7, fill_alpha=0.0,
+                                        marker_line_color=(1.0, 0.1, 0.1, 1.0), line_weight=2.0))
+    step = k - 1 if ins.step < 0 else ins.step
+    moved, x, *_ = implot.drag_line_x(1, float(step), (1.0, 1.0, 1.0, 0.8))
+    implot.end_plot()
+    if moved:
+        ins.step = int(min(max(round(x), 0), k - 1))
+    return moved
+
+
+def steps_table(ins) -> bool:
+    t = ins.trace
+    changed = False
+    flags = (imgui.TableFlags_.scroll_y | imgui.TableFlags_.row_bg | imgui.TableFlags_.borders_inner_v |
+             imgui.TableFlags_.sizing_fixed_fit)
+    if not imgui.begin_table("steps", 7, flags, (0, TABLE_HEIGHT)):
+        return False
+    for name in ("#", "patch", "depth", "u", "v", "diameter", "event"):
+        imgui.table_setup_column(name)
+    imgui.table_setup_scroll_freeze(0, 1)
+    imgui.table_headers_row()
+    clipper = imgui.ListClipper()
+    clipper.begin(len(t.steps_f))
+    while clipper.step():
+        for i in range(clipper.display_start, clipper.display_end):
+            f, n = t.steps_f[i], t.steps_i[i]
+            imgui.table_next_row()
+            imgui.table_next_column()
+            clicked, _ = imgui.selectable(f"{i}", i == ins.step, imgui.SelectableFlags_.span_all_columns)
+            if clicked:
+                ins.step, changed = i, True
+            for text in (f"{n[0]}", f"{n[1]}", f"{f[0]:.5f}..{f[1]:.5f}", f"{f[2]:.5f}..{f[3]:.5f}",
+                         f"{f[10]:.3e}", EVENT_NAMES[n[2]]):
+                imgui.table_next_column()
+                imgui.text(text)
+    imgui.end_table()
+    return changed
+
+
+def ui_inspector(state) -> bool:
+    """Returns True when the chosen step changed (the box outlines follow it)."""
+    if not imgui.collapsing_header("Inspector", imgui.TreeNodeFlags_.default_open):
+        return False
+    ins = state.inspector
+    if ins is None:
+        imgui.text_disabled("click a pixel of the image to inspect its ray")
+        return False
+    if imgui.begin_table("summary", 2, imgui.TableFlags_.sizing_stretch_prop):
+        for label, text in summary_rows(ins):
+            imgui.table_next_row()
+            imgui.table_next_column()
+            imgui.text(label)
+            imgui.table_next_column()
+            imgui.text_wrapped(text)
+        imgui.end_table()
+    k = len(ins.trace.steps_f)
+    if k == 0:
+        imgui.text_disabled("the ray met no patch box")
+        return False
+    changed = diameter_plot(ins)
+    moved, step = imgui.slider_int("step", ins.step if ins.step >= 0 else k - 1, 0, k - 1)
+    if moved:
+        ins.step, changed = step, True
+    f, n = ins.trace.steps_f[ins.step], ins.trace.steps_i[ins.step]
+    imgui.text(f"box {ins.step}: patch {n[0]}, depth {n[1]}, {EVENT_NAMES[n[2]]}, diameter {f[10]:.3e}")
+    changed |= steps_table(ins)
+    return changed

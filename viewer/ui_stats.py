@@ -1,0 +1,46 @@
+"""Stats panel: timing, progress, effort, and accuracy against float64 (Dammertz table 2.1)."""
+from __future__ import annotations
+
+from imgui_bundle import imgui
+
+ERROR_ROWS = (("max", "max error"), ("min", "min error"), ("mean", "mean error"), ("variance", "variance"),
+              ("floor", "float32 floor"), ("ratio", "mean / floor"), ("inside_4ulp", "ref in box (4 ulp)"))
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "-"
+    return f"{v:d}" if isinstance(v, int) else f"{v:.6e}" if abs(v) < 1e-3 or abs(v) >= 1e5 else f"{v:.6g}"
+
+
+def ui_stats(state) -> bool:
+    if not imgui.collapsing_header("Stats", imgui.TreeNodeFlags_.default_open):
+        return False
+    r = state.render
+    imgui.text(f"UI {state.fps:.0f} frames/s   render: {r.phase}")
+    if r.tiles_total:
+        imgui.progress_bar(r.tiles_done / r.tiles_total, (-1, 0), f"tiles {r.tiles_done}/{r.tiles_total}")
+    if state.latencies:
+        imgui.text(f"restart latency {1000 * state.latencies[-1]:.0f} ms (request to first tile)")
+    s = r.stats
+    if s:
+        rate = s["rays"] / s["time"] if s["time"] > 0 else 0.0
+        imgui.text(f"frame {s['time']:.3f} s, {rate / 1e3:.1f} k rays/s, {s['hits']}/{s['rays']} hits")
+        for key, label in (("effort", "effort (all rays)"), ("effort_hits", "effort (hits)")):
+            e = s.get(key)
+            if e:
+                imgui.text(f"{label}: min {e['min']:.0f}  mean {e['mean']:.1f}  max {e['max']:.0f}")
+    e = r.error_stats
+    if e:
+        imgui.separator_text(f"vs float64 reference ({r.ref_seconds:.2f} s)")
+        imgui.text(f"{e['compared']} hits compared, {e['holes']} holes, {e['false_hits']} false hits")
+        if imgui.begin_table("errors", 2, imgui.TableFlags_.borders_inner_h):
+            for key, label in ERROR_ROWS:
+                imgui.table_next_row()
+                imgui.table_next_column()
+                imgui.text(label)
+                imgui.table_next_column()
+                imgui.text(_fmt(e.get(key)))
+            imgui.end_table()
+        imgui.text_disabled("position error: L1 norm, world units, over pixels both hit")
+    return False
