@@ -1,0 +1,183 @@
+"""The viewer: pure parts without a display, and the real window under Xvfb (scripted runs).
+
+Window runs are small (128x128 image) and each runs in its own subprocess (viewer_util).
+"""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from tracer.camera import View, primary_rays, view_of
+from tracer.colormap import to_uint8
+from tracer.options import Options
+from tracer.render import render
+from tracer.scene import load_scene
+from tracer.shade import shade
+from tracer.trace_one import trace_pixel
+from viewer_util import TEAPOT, compare_images, read_png, run_view, xvfb  # noqa: F401 (fixture)
+
+SIZE = (128, 128)
+TEAPOT_PIXEL = (64, 72)      # on the teapot's body
+BACKGROUND_PIXEL = (4, 2)    # above the horizon: misses everything
+# GL converts the same float colours to 8 bits (round to nearest) as tracer.colormap.to_uint8;
+# one level allows for the driver's float rounding at exact .5 boundaries.
+SCREENSHOT_TOLERANCE = 1
+
+
+@pytest.fixture(scope="module")
+def teapot():
+    return load_scene(TEAPOT)
+
+
+def headless(scene, opts=Options()) -> np.ndarray:
+    """What the view must show: tracer.render + tracer.shade, quantised as the CLI writes PNGs."""
+    frame = render(scene, opts, size=SIZE)
+    return to_uint8(shade(frame, scene, opts.mode))
+
+
+# ---- no display needed --------------------------------------------------------------------
+
+def test_camera_controls_keep_their_invariants():
+    from viewer import camera_control as cc
+    v = View((6.0, -9.0, 5.0), (0.0, 0.0, 1.5), (0.0, 0.0, 1.0), 35.0)
+    dist = np.linalg.norm(np.subtract(v.eye, v.look_at))
+    o = cc.orbit(v, 40, -25)
+    assert o.look_at == v.look_at and math.isclose(np.linalg.norm(np.subtract(o.eye, o.look_at)), dist)
+    p = cc.pan(v, 10, 5, 128)
+    assert np.allclose(np.subtract(p.eye, v.eye), np.subtract(p.look_at, v.look_at))
+    z = cc.zoom(v, 2)
+    assert math.isclose(np.linalg.norm(np.subtract(z.eye, z.look_at)), dist * cc.ZOOM_PER_NOTCH ** 2)
+    for _ in range(200):  # orbiting over the pole stops short of it
+        v = cc.orbit(v, 0, 50)
+    v.basis()
+
+
+def test_projection_matches_primary_rays():
+    """A point along pixel (x, y)'s ray projects to that pixel's centre with the GL matrix."""
+    from viewer.display import view_projection
+    view = View((6.0, -9.0, 5.0), (0.0, 0.0, 1.5), (0.0, 0.0, 1.0), 35.0)
+    w, h = 160, 96
+    origins, dirs = primary_rays(view, w, h, "f64")
+    m = view_projection(view, w, h)
+    for x, y in ((0, 0), (159, 95), (80, 10), (3, 77)):
+        p = m @ np.append(origins[y, x] + 7.0 * dirs[y, x], 1.0)
+        ndc = p[:2] / p[3]
+        col, row_from_bottom = (ndc[0] + 1) / 2 * w, (ndc[1] + 1) / 2 * h
+        assert abs(col - (x + 0.5)) < 1e-6 and abs((h - row_from_bottom) - (y + 0.5)) < 1e-6
+
+
+def test_pixel_window_mapping_round_trips():
+    from viewer.picking import pixel_to_window, window_to_pixel
+    for region, size in (((0, 0, 128, 128), (128, 128)), ((10, 20, 300, 150), (600, 300))):
+        for px, py in ((0, 0), (size[0] - 1, size[1] - 1), (37, 41)):
+            assert window_to_pixel(region, size, *pixel_to_window(region, size, px, py)) == (px, py)
+    assert window_to_pixel((0, 0, 128, 128), (128, 128), 128.0, 5.0) is None
+
+
+def test_set_reaches_options_and_view_settings():
+    from viewer.state import ViewSettings, assign
+    opts, settings = assign(Options(), ViewSettings(), "criterion=adaptive")
+    opts, settings = assign(opts, settings, "overlay=error")
+    assert opts.criterion == "adaptive" and settings.overlay == "error"
+    with pytest.raises(ValueError, match="unknown option"):
+        assign(opts, settings, "nonsense=1")
+    with pytest.raises(ValueError, match="overlay"):
+        assign(opts, settings, "overlay=rainbow")
+
+
+def test_box_outlines_end_with_the_hit_box(teapot):
+    from viewer.picking import outline_vertices
+    from viewer.state import Inspection
+    trace = trace_pixel(teapot, Options(), *TEAPOT_PIXEL, size=SIZE)
+    verts = outline_vertices(Inspection(TEAPOT_PIXEL, trace, step=-1))
+    assert verts.shape[1] == 7 and len(verts) % 24 == 0
+    hit = trace.hit_step()
+    last = verts[-24:, :3]
+    assert np.allclose(last.min(axis=0), trace.steps_f[hit, 4:7], rtol=1e-6, atol=1e-6)
+    assert np.allclose(last.max(axis=0), trace.steps_f[hit, 7:10], rtol=1e-6, atol=1e-6)
+
+
+# ---- the window under Xvfb ----------------------------------------------------------------
+
+def test_first_frame_matches_headless_render(xvfb, tmp_path, teapot):
+    shot = tmp_path / "view.png"
+    code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--frames", 3000, "--screenshot", shot,
+                                        "--window-screenshot", tmp_path / "window.png"], tmp_path)
+    assert code == 0, err
+    assert status["render"]["phase"] in ("reference", "done") and status["renders"]["finished"] >= 1
+    assert status["render"]["tiles_done"] == status["render"]["tiles_total"] > 0
+    actual = read_png(shot)
+    assert actual.shape == (128, 128, 3) and actual.std() > 20, "screenshot is blank"
+    compare_images(actual, headless(teapot), tmp_path, "first-frame", SCREENSHOT_TOLERANCE)
+    window = read_png(tmp_path / "window.png")
+    assert window.shape[1] > 128 and np.array_equal(window[:128, :128], actual)  # the view at 1:1, top-left
+
+
+def test_click_on_teapot_dumps_the_pixel_trace(xvfb, tmp_path, teapot):
+    dump = tmp_path / "trace.json"
+    x, y = TEAPOT_PIXEL
+    code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--frames", 3000, "--click", f"{x},{y}",
+                                        "--dump-inspector", dump], tmp_path)
+    assert code == 0, err
+    got = json.loads(dump.read_text())
+    want = trace_pixel(teapot, Options(), x, y, size=SIZE)
+    assert got["pixel"] == [x, y] and got["hit"] is True and want.hit
+    assert got["steps"][-1]["event"] in ("hit", "miss", "pruned", "split")
+    assert got["steps"][got["hit_step"]]["event"] == "hit"
+    assert got["patch"] == want.patch
+    assert np.array_equal(np.array(got["position"]), want.position)  # same kernel, same ray: bit-identical
+    assert len(got["steps"]) == len(want.steps_f)
+
+
+def test_click_on_background_reports_a_miss(xvfb, tmp_path):
+    dump = tmp_path / "trace.json"
+    x, y = BACKGROUND_PIXEL
+    code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--frames", 3000, "--click", f"{x},{y}",
+                                        "--dump-inspector", dump], tmp_path)
+    assert code == 0, err
+    got = json.loads(dump.read_text())
+    assert got["pixel"] == [x, y] and got["hit"] is False and got["patch"] == -1
+    assert status["inspector"]["hit"] is False
+
+
+def test_changing_the_criterion_mid_render_re_renders(xvfb, tmp_path, teapot):
+    shot = tmp_path / "view.png"
+    code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--frames", 3000, "--set", "tile_size=16",
+                                        "--at", "mid-render:criterion=adaptive", "--screenshot", shot], tmp_path)
+    assert code == 0, err
+    applied = status["applied"][0]
+    assert applied["phase"] == "full" and 0 < applied["tiles_done"] < applied["tiles_total"], applied
+    assert status["renders"]["started"] >= 2 and status["renders"]["cancelled"] >= 1
+    assert status["render"]["traced_options"]["criterion"] == "adaptive"
+    compare_images(read_png(shot), headless(teapot, Options(criterion="adaptive", tile_size=16)), tmp_path,
+                   "adaptive", SCREENSHOT_TOLERANCE)
+
+
+def test_malformed_file_keeps_the_teapot_and_shows_the_error(xvfb, tmp_path, teapot):
+    bad = tmp_path / "broken.json"
+    bad.write_text('{"objects": [{"file": "teapot.bpt", "tranform": [1, 0]}]}')
+    shot = tmp_path / "view.png"
+    code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--frames", 3000, "--load", bad,
+                                        "--screenshot", shot], tmp_path)
+    assert code == 0, err
+    assert status["scene"] == str(TEAPOT) and status["n_patches"] == teapot.n_patches
+    assert status["error"] and "broken.json" in status["error"] and "tranform" in status["error"]
+    compare_images(read_png(shot), headless(teapot), tmp_path, "after-bad-file", SCREENSHOT_TOLERANCE)
+
+
+def test_broken_shader_is_reported_not_fatal(xvfb, tmp_path):
+    from viewer.display import PROGRAMS, SHADER_DIR
+    shaders = tmp_path / "shaders"
+    shaders.mkdir()
+    for files in PROGRAMS.values():
+        for f in files:
+            (shaders / f).write_text((SHADER_DIR / f).read_text())
+    (shaders / "image.frag").write_text("#version 330 core\nvoid main() { this is not glsl; }\n")
+    code, status, err = run_view(xvfb, [TEAPOT, "--size", "64x64", "--frames", 3000], tmp_path,
+                                 env={"PSRT_SHADER_DIR": str(shaders)})
+    assert code == 0, err
+    assert status["shader_error"] and "image.frag" in status["shader_error"]
+    assert status["render"]["phase"] in ("reference", "done")
