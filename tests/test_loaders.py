@@ -231,8 +231,8 @@ def obj(**keys):
      "not affine"),
     (obj(transform=[1, 2, 3, 0, 4, 5, 6, 0, 7, 8, 9, 0, 0, 0, 0, 1]), "objects[0].transform",
      "singular"),
-    ({"objects": [{"file": "teapot.obj"}]}, "objects[0].file",
-     "unsupported file type '.obj' (supported: .bpt)"),
+    ({"objects": [{"file": "teapot.stl"}]}, "objects[0].file",
+     "unsupported file type '.stl' (supported: .bpt, .obj, .igs, .iges)"),
     (obj(patches=[{"degree": [2, 1], "points": [[0, 0, 0]] * 4}]),
      "objects[0].patches[0].points", "degree [2, 1] needs 6 points, got 4"),
     (obj(patches=[{"degree": [0, 1], "points": []}]), "objects[0].patches[0].degree",
@@ -288,8 +288,8 @@ def test_error_inside_referenced_bpt_names_bpt(tmp_path):
 
 
 def test_unsupported_scene_extension(tmp_path):
-    with pytest.raises(SceneError, match=r"unsupported scene file type '\.obj'"):
-        load_scene(tmp_path / "x.obj")
+    with pytest.raises(SceneError, match=r"unsupported scene file type '\.stl'"):
+        load_scene(tmp_path / "x.stl")
     with pytest.raises(SceneError, match="file not found"):
         load_scene(tmp_path / "x.json")
 

@@ -1,8 +1,16 @@
-"""Scene loading: `.json` scene files and bare `.bpt` files into flat arrays.
+"""Scene loading: `.json` scene files and bare `.bpt`, `.obj`, `.igs` files into flat arrays.
 
 The format is the contract in /work/shared/scene-format.md. Every problem is a
-SceneError naming the file and the JSON key path (or the `.bpt` line).
+SceneError naming the file and the JSON key path (or the file's line).
+
+Free-form files (OBJ free-form, IGES) hold NURBS surfaces; each becomes its
+Bezier patches (v span outer, u span inner, see tracer.nurbs) in file order.
+patch_surface maps a patch back to Scene.surfaces and patch_domain gives the
+patch's rectangle in that surface's parameters, so a hit at patch parameters
+(s, t) in [0, 1]^2 lies at u = u0 + s*(u1 - u0), v = v0 + t*(v1 - v0).
+Trimming loops live in those surface parameters (Scene.trims, tracer.trim).
 """
+import dataclasses
 import json
 import math
 import os
@@ -12,6 +20,9 @@ import numpy as np
 
 from tracer.errors import SceneError
 from tracer.formats.bpt import MAX_DEGREE, PatchData, load_bpt
+from tracer.formats.obj import load_obj
+from tracer.nurbs import FreeformModel, SurfaceInfo
+from tracer.trim import TrimSet, build_trimset
 
 MAX_IMAGE_SIZE = 16384
 DEFAULT_MATERIAL = "default"
@@ -25,7 +36,7 @@ _PATCH_KEYS = ("degree", "points")
 _LIGHT_KEYS = ("type", "intensity", "color")
 _LIGHT_SHAPE = {"point": ("position",), "sphere": ("center", "radius"),
                 "segment": ("a", "b"), "rect": ("corner", "edge1", "edge2")}
-_FILE_TYPES = (".bpt",)
+_FILE_TYPES = (".bpt", ".obj", ".igs", ".iges")
 
 
 @dataclass
@@ -96,10 +107,36 @@ class Scene:
     lights: list[Light]
     camera: Camera | None
     image_size: tuple[int, int] | None  # (width, height)
+    patch_surface: np.ndarray | None = None  # (n_patches,) int32 index into surfaces, -1: plain Bezier
+    patch_domain: np.ndarray | None = None   # (n_patches, 4) float64 u0 u1 v0 v1 (0 1 0 1 if plain)
+    surfaces: list[SurfaceInfo] | None = None  # free-form surfaces in scene order
+    trims: TrimSet | None = None             # trimming loops per surface (tracer.trim)
+    import_report: dict | None = None        # per free-form file (source): what was converted
+
+    def __post_init__(self):
+        n = len(self.degree_u)
+        if self.patch_surface is None:
+            self.patch_surface = np.full(n, -1, np.int32)
+        if self.patch_domain is None:
+            self.patch_domain = np.tile(np.array([0.0, 1.0, 0.0, 1.0]), (n, 1))
+        if self.surfaces is None:
+            self.surfaces = []
+        if self.trims is None:
+            self.trims = build_trimset([[] for _ in self.surfaces])
+        if self.import_report is None:
+            self.import_report = {}
 
     @property
     def n_patches(self) -> int:
         return len(self.degree_u)
+
+    @property
+    def patch_has_trim(self) -> np.ndarray:
+        """(n_patches,) bool: the patch's surface has trimming loops."""
+        s = self.patch_surface
+        out = np.zeros(len(s), bool)
+        out[s >= 0] = self.trims.has_trim[s[s >= 0]]
+        return out
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(lo, hi), each (3,): the box of all control points."""
@@ -112,17 +149,17 @@ def default_material() -> Material:
 
 
 def load_scene(path) -> Scene:
-    """Load a `.json` scene, or a bare `.bpt` file as a one-object scene."""
+    """Load a `.json` scene, or a bare `.bpt`, `.obj`, `.igs`/`.iges` file as a one-object scene."""
     label = str(path)
     ext = os.path.splitext(label)[1].lower()
-    if ext == ".bpt":
-        patches = load_bpt(path)
+    if ext in _FILE_TYPES:
         name = os.path.splitext(os.path.basename(label))[0]
-        obj = _Obj(name, label, DEFAULT_MATERIAL, patches, np.eye(4))
+        obj = _Obj(name, label, DEFAULT_MATERIAL, [], np.eye(4))
+        _read_file(obj, path, ext)
         return _assemble(label, [obj], [default_material()], [], None, None)
     if ext != ".json":
-        raise SceneError(f"unsupported scene file type '{ext}' (supported: .json, .bpt)",
-                         path=label)
+        raise SceneError(f"unsupported scene file type '{ext}' (supported: .json, "
+                         f"{', '.join(_FILE_TYPES)})", path=label)
     try:
         with open(path, encoding="utf-8-sig") as f:
             text = f.read()
@@ -162,6 +199,31 @@ class _Obj:
     material: str
     patches: list[PatchData]
     transform: np.ndarray  # (4, 4)
+    model: FreeformModel | None = None   # free-form files: surfaces, loops, report
+    patch_surface: list[int] | None = None  # per patch: index into model.surfaces
+    patch_domain: list[np.ndarray] | None = None  # per surface: (its patches, 4)
+
+
+def _read_file(o: _Obj, path, ext: str) -> None:
+    """Fill o's patches from a .bpt, .obj or .igs/.iges file."""
+    if ext == ".bpt":
+        o.patches = load_bpt(path)
+        return
+    if ext == ".obj":
+        model = load_obj(path)
+    else:
+        from tracer.formats.iges import load_iges  # needs pyiges; import only when used
+        model = load_iges(path)
+    if not model.surfaces:
+        raise SceneError("no free-form surfaces in the file", path=str(path))
+    o.model, o.patch_surface, o.patch_domain = model, [], []
+    for si, fs in enumerate(model.surfaces):
+        net = fs.surface.bezier_patches()
+        line = fs.info.entity.get("line", -1)
+        for pts, rat in zip(net.points, net.rational):
+            o.patches.append(PatchData(net.degree_u, net.degree_v, pts, rat, line))
+        o.patch_surface += [si] * len(net.points)
+        o.patch_domain.append(net.domains)
 
 
 def _scene(data, label, base_dir) -> Scene:
@@ -191,9 +253,24 @@ def _scene(data, label, base_dir) -> Scene:
 def _assemble(label, objs, materials, lights, camera, image) -> Scene:
     names = [m.name for m in materials]
     pts, start, du, dv, rat, pobj, pmat, pline, objects = [], [0], [], [], [], [], [], [], []
+    psurf, pdom, surfaces, loops, reports = [], [], [], [], {}
     for oi, o in enumerate(objs):
         mi = names.index(o.material)
         objects.append(SceneObject(o.name, o.source, mi, len(du), len(o.patches)))
+        if o.model is None:
+            psurf.append(np.full(len(o.patches), -1, np.int32))
+            pdom.append(np.tile([0.0, 1.0, 0.0, 1.0], (len(o.patches), 1)))
+        else:
+            first = np.searchsorted(o.patch_surface, np.arange(len(o.model.surfaces)))
+            for si, fs in enumerate(o.model.surfaces):
+                info = dataclasses.replace(fs.info, object=oi, first_patch=len(du) + int(first[si]),
+                                           patch_count=len(o.patch_domain[si]))
+                surfaces.append(info)
+                loops.append(fs.loops)
+            psurf.append(np.asarray(o.patch_surface, np.int32) + (len(surfaces)
+                                                                  - len(o.model.surfaces)))
+            pdom.append(np.concatenate(o.patch_domain))
+            reports[o.source] = o.model.report
         lin, shift = o.transform[:3, :3], o.transform[:3, 3]
         for p in o.patches:
             xyz = p.points[:, :3] @ lin.T + shift  # transform the Euclidean point, keep w
@@ -208,7 +285,9 @@ def _assemble(label, objs, materials, lights, camera, image) -> Scene:
         rational=np.array(rat, bool), patch_object=np.array(pobj, np.int32),
         patch_material=np.array(pmat, np.int32), patch_line=np.array(pline, np.int32),
         objects=objects, materials=materials, lights=lights, camera=camera,
-        image_size=image)
+        image_size=image, patch_surface=np.concatenate(psurf).astype(np.int32),
+        patch_domain=np.concatenate(pdom).astype(np.float64).reshape(-1, 4),
+        surfaces=surfaces, trims=build_trimset(loops), import_report=reports)
 
 
 def _object(o, key, index, base_dir) -> _Obj:
@@ -227,7 +306,8 @@ def _object(o, key, index, base_dir) -> _Obj:
         if not os.path.isfile(resolved):
             problem = "not a file" if os.path.exists(resolved) else "file not found"
             raise SceneError(f"{problem}: {resolved}", key=f"{key}.file")
-        patches = load_bpt(resolved)
+        loaded = _Obj("", source, material, [], transform)
+        _read_file(loaded, resolved, ext)
         name = os.path.splitext(os.path.basename(source))[0]
     else:
         plist = _list(o["patches"], f"{key}.patches")
@@ -235,8 +315,12 @@ def _object(o, key, index, base_dir) -> _Obj:
             raise SceneError("expected at least one patch", key=f"{key}.patches")
         patches = [_inline_patch(p, f"{key}.patches[{j}]") for j, p in enumerate(plist)]
         source, name = "inline", f"object{index}"
+        loaded = None
     if "name" in o:
         name = _str(o["name"], f"{key}.name")
+    if loaded is not None:
+        loaded.name = name
+        return loaded
     return _Obj(name, source, material, patches, transform)
 
 
