@@ -98,6 +98,7 @@ def test_revolutions_match_iges_definition(impeller, doc):
         p = doc[fs.info.entity["surface_de"]].parameters[0]
         axis, gen = doc[int(p[1])].coordinates, doc[int(p[2])].coordinates
         a0, a1 = float(p[3]), float(p[4])
+        assert fs.info.entity["angle_v"] == [a0, a1] and "angle_u" not in fs.info.entity
         d = (axis[1] - axis[0]) / np.linalg.norm(axis[1] - axis[0])
         circ = CircleParam.for_sweep(a0, a1)
         for u, th in rng.uniform([0, a0], [1, a1], (10, 2)):

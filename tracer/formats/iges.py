@@ -357,7 +357,8 @@ class _Converter:
         base = self.ents[pts]
         return self._record(surf, e, loops, {"type": 144, "de": e.sequence_number,
                                              "surface_type": stype, "surface_de": pts,
-                                             "label": base.d.get("entity_label") or ""})
+                                             "label": base.d.get("entity_label") or "",
+                                             **_angle_info(maps)})
 
     def _record(self, surf, e, loops, entity) -> FreeformSurface:
         t = entity["surface_type"]
@@ -389,10 +390,10 @@ class _Converter:
                     surfaces.append(self.trimmed(e))
                 else:
                     self.used.add(seq)
-                    surf, _, t = self.surface(seq)
+                    surf, maps, t = self.surface(seq)
                     surfaces.append(self._record(surf, e, [], {
                         "type": t, "de": seq, "surface_type": t, "surface_de": seq,
-                        "label": e.d.get("entity_label") or ""}))
+                        "label": e.d.get("entity_label") or "", **_angle_info(maps)}))
                 converted.add(seq)
             except (_Unconvertible, NurbsError, TrimError, ValueError, IndexError,
                     AttributeError, TypeError) as err:
@@ -455,6 +456,15 @@ class _Converter:
             report["boundary_deviation_de"] = worst[1]
             report["boundaries_measured"] = len(self.deviations)
         return FreeformModel(surfaces, report)
+
+
+def _angle_info(maps) -> dict:
+    """For axes that are angles in IGES: {'angle_u'/'angle_v': [a0, a1]}.
+
+    CircleParam.for_sweep(a0, a1).angle(x) turns the NURBS parameter x back into
+    the IGES angle (they agree at the knots, every 90 degrees at most).
+    """
+    return {f"angle_{k}": [m.a0, m.a1] for k, m in zip("uv", maps) if m is not None}
 
 
 def _transformed(surf: NurbsSurface, m: np.ndarray) -> NurbsSurface:
