@@ -32,6 +32,17 @@ def teapot():
     return load_scene(TEAPOT)
 
 
+@pytest.fixture(scope="module")
+def warm_kernels(teapot):
+    """Compile (or load) the kernels the viewer uses once, here, so that a cold numba cache
+    costs the first window test a compile it cannot finish within its time limit."""
+    from tracer.render import reference_frame
+    frame = render(teapot, Options(), size=(4, 4))
+    reference_frame(teapot, frame)
+    trace_pixel(teapot, Options(), 2, 2, size=(4, 4))
+    trace_pixel(teapot, Options(precision="f64", criterion="float"), 2, 2, size=(4, 4))
+
+
 def headless(scene, opts=Options()) -> np.ndarray:
     """What the view must show: tracer.render + tracer.shade, quantised as the CLI writes PNGs."""
     frame = render(scene, opts, size=SIZE)
@@ -102,7 +113,7 @@ def test_box_outlines_end_with_the_hit_box(teapot):
 
 # ---- the window under Xvfb ----------------------------------------------------------------
 
-def test_first_frame_matches_headless_render(xvfb, tmp_path, teapot):
+def test_first_frame_matches_headless_render(xvfb, warm_kernels, tmp_path, teapot):
     shot = tmp_path / "view.png"
     code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--frames", 3000, "--screenshot", shot,
                                         "--window-screenshot", tmp_path / "window.png"], tmp_path)
@@ -116,7 +127,7 @@ def test_first_frame_matches_headless_render(xvfb, tmp_path, teapot):
     assert window.shape[1] > 128 and np.array_equal(window[:128, :128], actual)  # the view at 1:1, top-left
 
 
-def test_click_on_teapot_dumps_the_pixel_trace(xvfb, tmp_path, teapot):
+def test_click_on_teapot_dumps_the_pixel_trace(xvfb, warm_kernels, tmp_path, teapot):
     dump = tmp_path / "trace.json"
     x, y = TEAPOT_PIXEL
     code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--frames", 3000, "--click", f"{x},{y}",
@@ -132,7 +143,7 @@ def test_click_on_teapot_dumps_the_pixel_trace(xvfb, tmp_path, teapot):
     assert len(got["steps"]) == len(want.steps_f)
 
 
-def test_click_on_background_reports_a_miss(xvfb, tmp_path):
+def test_click_on_background_reports_a_miss(xvfb, warm_kernels, tmp_path):
     dump = tmp_path / "trace.json"
     x, y = BACKGROUND_PIXEL
     code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--frames", 3000, "--click", f"{x},{y}",
@@ -143,7 +154,7 @@ def test_click_on_background_reports_a_miss(xvfb, tmp_path):
     assert status["inspector"]["hit"] is False
 
 
-def test_changing_the_criterion_mid_render_re_renders(xvfb, tmp_path, teapot):
+def test_changing_the_criterion_mid_render_re_renders(xvfb, warm_kernels, tmp_path, teapot):
     shot = tmp_path / "view.png"
     code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--frames", 3000, "--set", "tile_size=16",
                                         "--at", "mid-render:criterion=adaptive", "--screenshot", shot], tmp_path)
@@ -156,7 +167,7 @@ def test_changing_the_criterion_mid_render_re_renders(xvfb, tmp_path, teapot):
                    "adaptive", SCREENSHOT_TOLERANCE)
 
 
-def test_malformed_file_keeps_the_teapot_and_shows_the_error(xvfb, tmp_path, teapot):
+def test_malformed_file_keeps_the_teapot_and_shows_the_error(xvfb, warm_kernels, tmp_path, teapot):
     bad = tmp_path / "broken.json"
     bad.write_text('{"objects": [{"file": "teapot.bpt", "tranform": [1, 0]}]}')
     shot = tmp_path / "view.png"
@@ -168,7 +179,7 @@ def test_malformed_file_keeps_the_teapot_and_shows_the_error(xvfb, tmp_path, tea
     compare_images(read_png(shot), headless(teapot), tmp_path, "after-bad-file", SCREENSHOT_TOLERANCE)
 
 
-def test_broken_shader_is_reported_not_fatal(xvfb, tmp_path):
+def test_broken_shader_is_reported_not_fatal(xvfb, warm_kernels, tmp_path):
     from viewer.display import PROGRAMS, SHADER_DIR
     shaders = tmp_path / "shaders"
     shaders.mkdir()

@@ -24,6 +24,7 @@ class Interaction:
         self.dragged = False
         self.middle = False
         self.hover = None
+        self.new_inspection = False  # the panel switches to the Inspector tab once
 
     def _pixel(self, mx, my):
         return window_to_pixel(self.v.region, self.v.state.image_size, mx, my)
@@ -111,6 +112,7 @@ class Interaction:
                    f"{traceback.format_exc(limit=3)}", "error")
             return False
         self.update_outlines()
+        self.new_inspection = True
         t = st.inspector.trace
         st.log(f"pixel {px},{py}: " + (f"hit patch {t.patch} at t={t.t:.6g}" if t.hit else "miss") +
                f", {len(t.steps_f)} boxes")

@@ -107,7 +107,17 @@ def outline_vertices(ins: Inspection, max_boxes: int = MAX_OUTLINED_BOXES) -> np
         pts = _box_lines(lo_, hi_).reshape(-1, 3)
         cols = np.repeat(col, 24, axis=0)
         out.append(np.concatenate([pts, cols], axis=1))
+    if tr.hit and 0 <= hit_step <= step and ins.view is not None:
+        out.append(_hit_marker(tr.position, ins.view))
     return np.concatenate(out).astype(np.float32)
+
+
+def _hit_marker(position, view, size: float = 0.015) -> np.ndarray:
+    """A red 3-D cross at the hit, `size` of the eye distance long: final boxes are sub-pixel."""
+    p = np.asarray(position, float)
+    arm = size * float(np.linalg.norm(p - np.asarray(view.eye, float)))
+    pts = np.concatenate([[p - arm * e, p + arm * e] for e in np.eye(3)])
+    return np.concatenate([pts, np.tile(HIT_BOX_RGBA, (6, 1))], axis=1)
 
 
 def hover_values(state, px: int, py: int) -> list:

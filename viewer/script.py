@@ -35,6 +35,15 @@ def parse_at(text: str):
     return when, assignment
 
 
+def _fps_summary(frame_times) -> dict | None:
+    """UI frames per second while a render ran: mean and the slowest 5% of frames."""
+    if not frame_times:
+        return None
+    t = sorted(frame_times)
+    return {"frames": len(t), "mean_fps": len(t) / sum(t), "p95_frame_ms": 1000 * t[int(0.95 * (len(t) - 1))],
+            "max_frame_ms": 1000 * t[-1]}
+
+
 @dataclass
 class Script:
     sets: list = field(default_factory=list)        # "name=value", before the first render
@@ -184,6 +193,7 @@ class Script:
                                           if r.key else None)},
             "renders": {"started": st.renders_started, "finished": st.renders_finished,
                         "cancelled": st.renders_cancelled, "start_latencies": st.latencies},
+            "ui_while_rendering": _fps_summary(st.busy_frame_times),
             "applied": self.applied,
             "overlay": {k: v for k, v in st.overlay_info.items() if k != "lut"},
             "inspector": ({"pixel": list(ins.trace.pixel), "hit": bool(ins.trace.hit), "patch": int(ins.trace.patch),

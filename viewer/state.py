@@ -159,7 +159,8 @@ class AppState:
     renders_started: int = 0
     renders_finished: int = 0
     renders_cancelled: int = 0
-    latencies: list = field(default_factory=list)  # seconds from request to first tile
+    latencies: list = field(default_factory=list)  # seconds from request to the worker starting it
+    busy_frame_times: list = field(default_factory=list)  # UI frame times while a render runs
 
     def log(self, text: str, level: str = "info") -> None:
         self.messages.append((time.time(), level, text))

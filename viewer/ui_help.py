@@ -23,8 +23,7 @@ SHORTCUTS = (
 def ui_help(state) -> bool:
     if not state.show_help:
         return False
-    imgui.set_next_window_size((460, 0), imgui.Cond_.appearing)
-    _, state.show_help = imgui.begin("Help", state.show_help)
+    _, state.show_help = imgui.begin("Help", state.show_help, imgui.WindowFlags_.always_auto_resize)
     if imgui.begin_table("keys", 2, imgui.TableFlags_.borders_inner_h):
         for keys, what in SHORTCUTS:
             imgui.table_next_row()

@@ -42,7 +42,9 @@ def diameter_plot(ins) -> bool:
     if k == 0 or not implot.begin_plot("##diameters", (-1, PLOT_HEIGHT)):
         return False
     xs = np.arange(k, dtype=np.float64)
-    ys = np.maximum(t.diameters.astype(np.float64), 1e-300)
+    ys = t.diameters.astype(np.float64)
+    positive = ys[ys > 0]
+    ys = np.maximum(ys, positive.min() if positive.size else 1e-30)  # log axis: no zeros
     implot.setup_axes("box index", "L1 diameter")
     implot.setup_axis_scale(implot.ImAxis_.y1, implot.Scale_.log10)
     implot.plot_line("diameter", xs, ys, implot.Spec(line_color=(0.6, 0.6, 0.6, 1.0)))
@@ -71,7 +73,7 @@ def diameter_plot(ins) -> bool:
 def steps_table(ins) -> bool:
     t = ins.trace
     changed = False
-    flags = (imgui.TableFlags_.scroll_y | imgui.TableFlags_.row_bg | imgui.TableFlags_.borders_inner_v |
+    flags = (imgui.TableFlags_.scroll_y | imgui.TableFlags_.scroll_x | imgui.TableFlags_.row_bg | imgui.TableFlags_.borders_inner_v |
              imgui.TableFlags_.sizing_fixed_fit)
     if not imgui.begin_table("steps", 7, flags, (0, TABLE_HEIGHT)):
         return False
@@ -89,7 +91,7 @@ def steps_table(ins) -> bool:
             clicked, _ = imgui.selectable(f"{i}", i == ins.step, imgui.SelectableFlags_.span_all_columns)
             if clicked:
                 ins.step, changed = i, True
-            for text in (f"{n[0]}", f"{n[1]}", f"{f[0]:.5f}..{f[1]:.5f}", f"{f[2]:.5f}..{f[3]:.5f}",
+            for text in (f"{n[0]}", f"{n[1]}", f"{f[0]:.4g}..{f[1]:.4g}", f"{f[2]:.4g}..{f[3]:.4g}",
                          f"{f[10]:.3e}", EVENT_NAMES[n[2]]):
                 imgui.table_next_column()
                 imgui.text(text)

@@ -21,7 +21,7 @@ def ui_stats(state) -> bool:
     if r.tiles_total:
         imgui.progress_bar(r.tiles_done / r.tiles_total, (-1, 0), f"tiles {r.tiles_done}/{r.tiles_total}")
     if state.latencies:
-        imgui.text(f"restart latency {1000 * state.latencies[-1]:.0f} ms (request to first tile)")
+        imgui.text(f"restart latency {1000 * state.latencies[-1]:.0f} ms (option change to the new render starting)")
     s = r.stats
     if s:
         rate = s["rays"] / s["time"] if s["time"] > 0 else 0.0

@@ -46,6 +46,18 @@ def centre_out(width: int, height: int, size: int) -> list:
     return sorted(range(len(rects)), key=d.__getitem__)
 
 
+def _lower_priority(nice: int = 10) -> None:
+    """Make this thread (and the tile threads it starts, which inherit it) yield to the UI.
+
+    On Linux the nice value is per thread; with few cores this keeps the UI (and Mesa's
+    software rasteriser) at frame rate while tiles are traced.
+    """
+    try:
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), nice)
+    except (AttributeError, OSError):
+        pass
+
+
 class GeometryCache:
     """Prepared geometry per precision for the current scene (preparing is the slow part)."""
 
@@ -133,6 +145,7 @@ class RenderWorker:
         self.events.put(("phase", job.id, (name, time.perf_counter())))
 
     def _run(self):
+        _lower_priority()
         while True:
             with self._cond:
                 while self._job is None and not self._stop:
