@@ -99,6 +99,20 @@ def test_set_reaches_options_and_view_settings():
         assign(opts, settings, "overlay=rainbow")
 
 
+def test_option_widgets_know_which_fields_apply():
+    from dataclasses import fields
+
+    from viewer.state import ViewSettings
+    from viewer.ui_fields import applies
+    by_name = {f.name: f for f in fields(Options)}
+    assert applies(Options(criterion="fixed"), by_name["fixed_size"])
+    assert not applies(Options(criterion="float"), by_name["fixed_size"])
+    assert applies(Options(criterion="adaptive"), by_name["pixel_fraction"])
+    assert applies(Options(), by_name["split"])
+    range_lo = {f.name: f for f in fields(ViewSettings)}["range_lo"]
+    assert not applies(ViewSettings(), range_lo) and applies(ViewSettings(range="manual"), range_lo)
+
+
 def test_box_outlines_end_with_the_hit_box(teapot):
     from viewer.picking import outline_vertices
     from viewer.state import Inspection
@@ -165,6 +179,16 @@ def test_changing_the_criterion_mid_render_re_renders(xvfb, warm_kernels, tmp_pa
     assert status["render"]["traced_options"]["criterion"] == "adaptive"
     compare_images(read_png(shot), headless(teapot, Options(criterion="adaptive", tile_size=16)), tmp_path,
                    "adaptive", SCREENSHOT_TOLERANCE)
+
+
+def test_display_mode_change_re_shades_without_re_tracing(xvfb, warm_kernels, tmp_path, teapot):
+    shot = tmp_path / "view.png"
+    code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--frames", 3000, "--at", "60:mode=normal",
+                                        "--screenshot", shot], tmp_path)
+    assert code == 0, err
+    assert status["renders"]["started"] == 1 and status["render"]["shaded_mode"] == "normal"
+    compare_images(read_png(shot), headless(teapot, Options(mode="normal")), tmp_path, "normal",
+                   SCREENSHOT_TOLERANCE)
 
 
 def test_malformed_file_keeps_the_teapot_and_shows_the_error(xvfb, warm_kernels, tmp_path, teapot):
