@@ -68,6 +68,9 @@ class Viewer:
         implot.create_context()
         io = imgui.get_io()
         io.set_ini_filename("")
+        # A panel that raises half-way leaves Begin/End unbalanced: ImGui closes them, not abort.
+        io.config_error_recovery_enable_assert = False
+        io.config_error_recovery_enable_debug_log = False  # we log the Python exception once
         self.window_address = ctypes.cast(self.window, ctypes.c_void_p).value
         imgui.backends.glfw_init_for_opengl(self.window_address, True)
         imgui.backends.opengl3_init("#version 330")
@@ -83,6 +86,7 @@ class Viewer:
         self.region = (0, 0, 0, 0)
         self.last_frame_time = time.perf_counter()
         self.closed = False
+        self._last_internal_error = None
 
     # --- files ----------------------------------------------------------------------------
     def _on_drop(self, _window, paths):
@@ -147,16 +151,27 @@ class Viewer:
         if st.error:
             x, y, w, h = self.region
             imgui.set_next_window_pos((x + 8, y + h - 8), imgui.Cond_.always, (0.0, 1.0))
+            imgui.set_next_window_size((max(w - 16, 50), 0))
             imgui.set_next_window_bg_alpha(0.8)
             imgui.begin("##error-banner", None, imgui.WindowFlags_.no_decoration | imgui.WindowFlags_.no_inputs |
-                        imgui.WindowFlags_.always_auto_resize | imgui.WindowFlags_.no_focus_on_appearing |
-                        imgui.WindowFlags_.no_nav)
-            imgui.text_colored((1.0, 0.35, 0.3, 1.0), st.error.splitlines()[0][:160])
+                        imgui.WindowFlags_.no_focus_on_appearing | imgui.WindowFlags_.no_nav)
+            imgui.push_style_color(imgui.Col_.text, (1.0, 0.35, 0.3, 1.0))
+            imgui.text_wrapped(st.error.splitlines()[0][:300])
+            imgui.pop_style_color()
             imgui.end()
 
     def _inspector(self, st) -> None:
         if ui_inspector(st):
             self.interaction.update_outlines()
+
+    def _guard(self, step, *args):
+        try:
+            step(*args)
+        except Exception as e:
+            text = f"internal error in {step.__name__}: {type(e).__name__}: {e}"
+            if text != self._last_internal_error:  # the same bug every frame is logged once
+                self._last_internal_error = text
+                self.state.log(f"{text}\n{traceback.format_exc(limit=5)}", "error")
 
     # --- one frame ------------------------------------------------------------------------
     def frame(self, script=None) -> None:
@@ -171,18 +186,12 @@ class Viewer:
         if script is not None:
             script.inject(self)
         imgui.new_frame()
-        try:
-            if st.pending_open:
-                path, st.pending_open = st.pending_open, None
-                self.open(path)
-            self._layout()
-            self.events.drain()
-            self.interaction.handle_input()
-            self._panels()
-            self.events.request()
-            self.events.update_overlay()
-        except Exception as e:  # a bug in one frame must not close the window
-            st.log(f"internal error: {type(e).__name__}: {e}\n{traceback.format_exc(limit=5)}", "error")
+        if st.pending_open:
+            path, st.pending_open = st.pending_open, None
+            self._guard(self.open, path)
+        for step in (self._layout, self.events.drain, self.interaction.handle_input, self._panels,
+                     self.events.request, self.events.update_overlay):
+            self._guard(step)  # one failing step must not stop the others, nor close the window
         imgui.render()
         fb_size = glfw.get_framebuffer_size(self.window)
         self.ctx.screen.use()

@@ -18,7 +18,8 @@ def open_scene(state, geometry, path) -> bool:
         home = view_of(scene)
         home.basis()  # a degenerate camera is an error now, not in the worker
     except (SceneError, ValueError, OSError) as e:
-        state.log(f"cannot open {path}: {e}" + ("; keeping the current scene" if state.scene else ""), "error")
+        where = "" if path in str(e) else f"{path}: "  # SceneError already names the file
+        state.log(f"cannot open {where}{e}" + ("; keeping the current scene" if state.scene else ""), "error")
         return False
     except Exception as e:  # a loader bug must not take the window down either
         state.log(f"cannot open {path}: {type(e).__name__}: {e}", "error")

@@ -166,7 +166,7 @@ class AppState:
         self.messages.append((time.time(), level, text))
         del self.messages[:-200]
         if level == "error":
-            self.error = text
+            self.error = text.split("\nTraceback")[0]  # the traceback stays in the message log
 
     def add_recent(self, path: str) -> None:
         path = os.path.abspath(path)
