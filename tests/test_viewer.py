@@ -191,6 +191,25 @@ def test_display_mode_change_re_shades_without_re_tracing(xvfb, warm_kernels, tm
                    SCREENSHOT_TOLERANCE)
 
 
+@pytest.mark.parametrize("channel", ["error", "effort"])
+def test_overlay_matches_the_cli_channel_map(xvfb, warm_kernels, tmp_path, teapot, channel):
+    """At opacity 1 the GPU-mapped overlay is the CLI's map of the same frame and reference."""
+    from tracer.render import AOV_NAMES, reference_frame
+    from tracer.stats import channel_rgb
+    shot, aov = tmp_path / "view.png", tmp_path / "aov.npz"
+    code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--frames", 3000, "--set", f"overlay={channel}",
+                                        "--set", "opacity=1", "--wait-reference", "--screenshot", shot, "--aov", aov], tmp_path)
+    assert code == 0, err
+    assert status["render"]["phase"] == "done" and status["render"]["error_stats"]["compared"] > 0
+    assert sorted(np.load(aov).files) == sorted(AOV_NAMES)
+    frame = render(teapot, Options(), size=SIZE)
+    ref = reference_frame(teapot, frame)
+    lo, hi = status["overlay"]["lo"], status["overlay"]["hi"]
+    expected, _ = channel_rgb(channel, frame, ref, vrange=(lo, hi))
+    # GPU log vs numpy log10 may pick the neighbouring entry of the 256-entry map: 3 levels.
+    compare_images(read_png(shot), to_uint8(expected), tmp_path, f"{channel}-overlay", 3)
+
+
 def test_malformed_file_keeps_the_teapot_and_shows_the_error(xvfb, warm_kernels, tmp_path, teapot):
     bad = tmp_path / "broken.json"
     bad.write_text('{"objects": [{"file": "teapot.bpt", "tranform": [1, 0]}]}')

@@ -131,11 +131,11 @@ class Script:
         if r.key != key or r.frame is None or r.phase not in ("reference", "done") \
                 or r.tiles_done < r.tiles_total or viewer.events.shaded_mode != st.opts.mode:
             return False
-        need = self.wait_reference
-        if need is None:
-            ch = viewer.overlay.channel if st.settings.overlay != "none" else None
-            need = bool(ch is not None and ch.needs_reference)
-        return not need or (r.phase == "done" and r.reference is not None and not viewer.overlay.dirty_range)
+        ch = viewer.overlay.channel if st.settings.overlay != "none" else None
+        need = self.wait_reference if self.wait_reference is not None else bool(ch and ch.needs_reference)
+        if need and (r.phase != "done" or r.reference is None):
+            return False
+        return ch is None or not viewer.overlay.dirty_range  # the legend's range is up to date
 
     def finished(self, viewer) -> bool:
         if self._pending_at or (self.click is not None and self._click_stage < 5):
