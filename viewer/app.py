@@ -39,6 +39,7 @@ MIN_WINDOW_HEIGHT = 720
 TARGET_FPS = 60.0
 BUSY_FPS = 36.0  # while tiles are traced: above the 30 frames/s promised, leaving CPU to the tracer
 IDLE_WAIT = 0.1
+AWAKE_AFTER_INPUT = 0.5
 
 
 class Viewer:
@@ -87,6 +88,7 @@ class Viewer:
         self.last_frame_time = time.perf_counter()
         self.closed = False
         self._last_internal_error = None
+        self.awake_until = 0.0
 
     # --- files ----------------------------------------------------------------------------
     def _on_drop(self, _window, paths):
@@ -177,8 +179,12 @@ class Viewer:
     def frame(self, script=None) -> None:
         st = self.state
         if script is None and st.render.phase in ("idle", "done", "error", "cancelled") \
-                and self.worker.events.empty():
+                and self.worker.events.empty() and time.perf_counter() > self.awake_until:
+            start = time.perf_counter()
             glfw.wait_events_timeout(IDLE_WAIT)  # idle: sleep until input
+            if time.perf_counter() - start < 0.9 * IDLE_WAIT:
+                # Input arrived: ImGui needs a few frames in a row to act on it (press, release, redraw).
+                self.awake_until = time.perf_counter() + AWAKE_AFTER_INPUT
         else:
             glfw.poll_events()
         imgui.backends.opengl3_new_frame()
