@@ -196,7 +196,7 @@ class Viewer:
             path, st.pending_open = st.pending_open, None
             self._guard(self.open, path)
         for step in (self._layout, self.events.drain, self.interaction.handle_input, self._panels,
-                     self.events.request, self.events.update_overlay):
+                     self.interaction.refresh_inspection, self.events.request, self.events.update_overlay):
             self._guard(step)  # one failing step must not stop the others, nor close the window
         imgui.render()
         fb_size = glfw.get_framebuffer_size(self.window)

@@ -118,6 +118,20 @@ class Interaction:
                f", {len(t.steps_f)} boxes")
         return True
 
+    def refresh_inspection(self) -> None:
+        """Re-trace the inspected pixel when the tracer options change (same view, same pixel)."""
+        from .worker import trace_options
+        st, ins = self.v.state, self.v.state.inspector
+        if ins is None or ins.opts is None or ins.view != st.view or st.scene is None:
+            return
+        if trace_options(ins.opts) != trace_options(st.opts):
+            step = ins.step
+            ins.opts = st.opts  # a failing re-trace is reported once, not every frame
+            if self.inspect(*ins.pixel) and 0 <= step < len(st.inspector.trace.steps_f) - 1:
+                st.inspector.step = step
+                self.update_outlines()
+            self.new_inspection = False
+
     def update_outlines(self) -> None:
         ins = self.v.state.inspector
         self.v.display.set_boxes(outline_vertices(ins) if ins is not None else None)
