@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from tracer.camera import View, primary_rays, view_of
+from tracer.camera import View, primary_rays
 from tracer.colormap import to_uint8
 from tracer.options import Options
 from tracer.render import render
