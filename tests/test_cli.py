@@ -174,7 +174,8 @@ def test_trace_json_and_plot(tmp_path, capsys):
     assert tr["hit"] and tr["patch"] >= 0 and tr["t"] > 0
     step_keys = {"patch", "depth", "u", "v", "box_min", "box_max", "diameter", "event"}
     assert all(step_keys <= set(s) and s["event"] in ("miss", "pruned", "split", "hit") for s in tr["steps"])
-    last_hit = [s for s in tr["steps"] if s["event"] == "hit"][-1]
+    last_hit = tr["steps"][tr["hit_step"]]  # the step that produced the reported box
+    assert last_hit["event"] == "hit"
     assert last_hit["box_min"] == tr["box_min"] and last_hit["box_max"] == tr["box_max"]
     assert last_hit["patch"] == tr["patch"]
     centre = (np.array(tr["box_min"]) + np.array(tr["box_max"])) / 2
@@ -262,11 +263,12 @@ def test_help_exits_0(capsys):
         assert flag in out
 
 
-def test_view_hook_calls_viewer_lazily(monkeypatch, tmp_path):
+def test_view_command_reaches_the_viewer_with_the_options(monkeypatch):
     calls = []
     fake = types.ModuleType("viewer.app")
     fake.__spec__ = importlib.machinery.ModuleSpec("viewer.app", None)
-    fake.main_from_cli = lambda args, opts: calls.append((args.scene, args.size, opts)) or 0
+    fake.run = lambda scene, frames, size=None, script=None, opts=None, settings=None: \
+        calls.append((scene, size, opts)) or 0
     import viewer
     monkeypatch.setitem(sys.modules, "viewer.app", fake)
     monkeypatch.setattr(viewer, "app", fake, raising=False)

@@ -150,31 +150,11 @@ def control_box(buf, slot, count, box):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def round_down(q, bits):
-    """The largest number <= q (q exact or one float64 ulp off) on the grid of `bits`-bit floats."""
-    if q == 0.0:
-        return 0.0  # a zero quotient is exact
-    q = np.nextafter(q, -math.inf)  # q carries one float64 rounding: step past it
-    ulp = math.ldexp(1.0, math.frexp(q)[1] - bits)
-    if bits >= 53 or ulp == 0.0:
-        return q
-    return math.floor(q / ulp) * ulp
-
-
-@njit(cache=True, nogil=True, inline='always')
-def round_up(q, bits):
-    """The smallest number >= q on the grid of `bits`-bit floats (see round_down)."""
-    return -round_down(-q, bits)
-
-
-@njit(cache=True, nogil=True, inline='always')
-def control_box_rational(buf, slot, count, box, bits):
+def control_box_rational(buf, slot, count, box):
     """Box of the homogenised control points (x/w, y/w, z/w) of a rational patch in `slot`.
 
-    Quotients are formed in float64 and each bound is rounded outward onto the working
-    precision's grid (numba has no rounding modes): the box contains every exact quotient of
-    the stored points, and, like an integral patch's box, cannot shrink below one working ulp,
-    so the float criterion ends where the working precision does (Dammertz 2.7.2).
+    Quotients are formed in float64 (one rounding, within the widening the search applies to
+    every box); with positive weights the sub-patch lies in the hull of these points.
     """
     for c in range(3):
         lo = math.inf
@@ -183,8 +163,8 @@ def control_box_rational(buf, slot, count, box, bits):
             q = float(buf[slot, c, k]) / float(buf[slot, 3, k])
             lo = min(lo, q)
             hi = max(hi, q)
-        box[slot, c] = round_down(lo, bits)
-        box[slot, 3 + c] = round_up(hi, bits)
+        box[slot, c] = lo
+        box[slot, 3 + c] = hi
 
 
 @njit(cache=True, nogil=True)

@@ -182,24 +182,16 @@ def _add_quiet(parser):
 
 
 def _add_view_command(subparsers):
-    """`psrt view SCENE`, only when the viewer package is installed. viewer.app is imported when
-    the command runs (never at start-up); it must provide `main_from_cli(args, opts) -> int`."""
+    """`psrt view SCENE ...`, only when the viewer package is installed. viewer.cli_view adds its
+    flags without loading glfw or OpenGL; the window starts only when the command runs."""
     try:
-        found = importlib.util.find_spec("viewer.app") is not None
+        found = importlib.util.find_spec("viewer.cli_view") is not None
     except (ImportError, ValueError):
         found = False
     if not found:
         return
-    p = subparsers.add_parser("view", help="open the interactive viewer")
-    p.add_argument("scene", help="scene .json or .bpt file")
-    p.add_argument("--size", type=parse_size, help="image size WxH (default: the scene's, else 512x512)")
-    add_option_flags(p)
-    p.set_defaults(func=_cmd_view)
-
-
-def _cmd_view(args) -> int:
-    from viewer import app  # the CLI is the one place in tracer/ that reaches the viewer
-    return app.main_from_cli(args, options_from_args(args))
+    from viewer.cli_view import add_view_command  # the CLI is the one place in tracer/ that reaches the viewer
+    add_view_command(subparsers)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,10 +1,11 @@
 """Scene patches in the layout the kernels read: flat arrays in the working precision.
 
-Control points are stored relative to one frame origin per object (the centre
-of its control-point box): de Casteljau midpoints then round relative to the
-object's own extent instead of its distance from the world origin, and the
-patches of one object share a frame, so points on a common edge stay
-bit-identical and no crack can open between them.
+Control points are stored relative to one frame origin per patch (the centre
+of its control-point box, a float32 number), so they round relative to the
+patch's own extent instead of its distance from the world origin. The exact
+rounding error of the stored points is measured here (`eps`, per patch and
+axis); the kernel widens every box by it, so boxes contain the true surface
+and patches sharing an edge cannot leave a crack between them.
 """
 from __future__ import annotations
 
@@ -29,6 +30,7 @@ class Geometry:
     deg_v: np.ndarray     # (n_patches,) int32
     rational: np.ndarray  # (n_patches,) int8: 1 for rational patches
     frame: np.ndarray     # (n_patches, 3) float64 frame origin of each patch
+    eps: np.ndarray       # (n_patches, 3) float64 bound on |stored surface - true surface| per axis
     patch_box: np.ndarray # (n_patches, 6) float64 tight world boxes (one quad split, padded)
     bvh: Bvh
 
@@ -87,29 +89,50 @@ def prepare(scene, precision: str = "f32") -> Geometry:
         raise ValueError(f"{scene.path or 'scene'}: no patches to render")
     dtype = PRECISION_DTYPE[precision]
     bits = PRECISION_BITS[precision]
+    n = scene.n_patches
+    start = np.asarray(scene.point_start, np.int64)
     xyz = scene.points[:, :3]
-    frame = np.zeros((scene.n_patches, 3))
-    for obj in scene.objects:
-        sl = slice(obj.first_patch, obj.first_patch + obj.patch_count)
-        pts = xyz[scene.point_start[obj.first_patch]:scene.point_start[obj.first_patch + obj.patch_count]]
-        # Round the frame origin to float32 so origin + local stays cheap to form exactly.
-        frame[sl] = np.float32(0.5 * (pts.min(axis=0) + pts.max(axis=0)))
-    patch_of_point = np.repeat(np.arange(scene.n_patches), np.diff(scene.point_start))
     weight = scene.points[:, 3:4]
-    homogeneous = np.hstack([(xyz - frame[patch_of_point]) * weight, weight])
+    patch_of_point = np.repeat(np.arange(n), np.diff(start))
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    np.minimum.at(lo, patch_of_point, xyz)
+    np.maximum.at(hi, patch_of_point, xyz)
+    frame = (0.5 * (lo + hi)).astype(np.float32).astype(np.float64)
+    local = xyz - frame[patch_of_point]
+    homogeneous = np.hstack([local * weight, weight])
     ctrl = np.ascontiguousarray(homogeneous.T.astype(dtype))
-    boxes = np.zeros((scene.n_patches, 6))
-    local = ctrl.astype(np.float64)
-    for p in range(scene.n_patches):
-        a, b = scene.point_start[p], scene.point_start[p + 1]
-        m, n = int(scene.degree_u[p]), int(scene.degree_v[p])
-        grid = local[:, a:b].T.reshape(n + 1, m + 1, 4)
+    stored = ctrl.T.astype(np.float64)
+    eps = _rounding_bounds(local, weight, stored, patch_of_point, n, bits)
+    boxes = np.zeros((n, 6))
+    for p in range(n):
+        a, b = start[p], start[p + 1]
+        m, k = int(scene.degree_u[p]), int(scene.degree_v[p])
+        grid = stored[a:b].reshape(k + 1, m + 1, 4)
         box = tight_box(grid)
-        # The kernel's rounded midpoints may stray a few ulps outside the exact quarter boxes.
+        # Kernel boxes are widened by eps and the subdivision's rounding bound (intersect._widen).
         magnitude = np.abs(grid[..., :3] / grid[..., 3:]).max()
-        pad = magnitude * 2.0 ** (4 - bits) + np.finfo(np.float64).tiny
+        pad = eps[p] + magnitude * 2.0 ** (9 - bits) + np.finfo(np.float64).tiny
         boxes[p, :3] = box[:3] - pad + frame[p]
         boxes[p, 3:] = box[3:] + pad + frame[p]
-    return Geometry(precision, ctrl, np.asarray(scene.point_start, np.int64),
-                    np.asarray(scene.degree_u, np.int32), np.asarray(scene.degree_v, np.int32),
-                    np.asarray(scene.rational, np.int8), frame, boxes, build_bvh(boxes))
+    return Geometry(precision, ctrl, start, np.asarray(scene.degree_u, np.int32),
+                    np.asarray(scene.degree_v, np.int32), np.asarray(scene.rational, np.int8),
+                    frame, eps, boxes, build_bvh(boxes))
+
+
+def _rounding_bounds(local, weight, stored, patch_of_point, n, bits):
+    """Per patch and axis, a bound on how far the surface of the stored (rounded) points lies
+    from the true one: the largest error of a stored Euclidean point, plus, for rational
+    patches, what rounded weights can move a convex combination (2 du diameter)."""
+    euclid = stored[:, :3] / stored[:, 3:]
+    point_err = np.abs(euclid - local) + np.abs(local) * 2.0 ** -52
+    weight_err = np.abs(stored[:, 3:] - weight) / weight
+    eps = np.zeros((n, 3))
+    np.maximum.at(eps, patch_of_point, point_err)
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    np.minimum.at(lo, patch_of_point, local)
+    np.maximum.at(hi, patch_of_point, local)
+    wmax = np.zeros(n)
+    np.maximum.at(wmax, patch_of_point, weight_err[:, 0] + 2.0 ** -52)
+    return eps + 4.0 * wmax[:, None] * (hi - lo)

@@ -5,26 +5,41 @@ box is hit either meets the termination criterion (hit: its box is the hit
 interval) or is halved in u or v; each half's box is tested at once, and the
 nearer half is visited first, so a hit shortens the ray and prunes the rest.
 
-Precision: control points are stored relative to a per-object frame origin in
-the working dtype (float32 or float64); midpoints round relative to the size of
-those local coordinates, not of the world ones. Ray-box slabs run in float64
-on the (exactly widened) box corners, so the ray is never rounded again.
+Where the arithmetic happens: control points are stored in the working dtype
+relative to their patch's frame, and a sub-patch is re-centred on its own box
+once the box is much smaller than its coordinates, so midpoints round relative
+to the box, not to the object or the world origin. Every box is widened by the
+rounding error of the stored control points (exact, measured at load) plus a
+bound on the subdivision's own rounding: it contains the true surface, so
+neighbouring patches cannot leave a crack whatever their frames. The search
+runs in the patch's frame (the ray origin is moved there once, in float64);
+ray-box slabs run in float64 on frame-relative = local + offset.
 
-Scratch layout (one set per thread), S = max depth + 2 slots:
+The float criterion is Dammertz's "the box stopped shrinking", applied to the
+frame-relative box rounded outward onto the working precision's grid, its L1
+diameter summed in that precision: the search ends where the working
+precision can no longer tell the boxes apart (translation-invariant: a patch
+far from the world origin is traced as precisely as one at it), and that grid
+box, moved to world coordinates, is the reported hit box. The other criteria
+are tested on the same grid box, so what they promise holds for what is reported.
+
+Scratch (one set per thread), S = max depth + 2 slots:
   buf   (S, 4, P) working dtype   control points per slot (row 3: weights of rational patches)
-  box   (S, 6)    float64         local box per slot: lo xyz, hi xyz
-  mf    (S, 8)    float64         per slot: u0 u1 v0 v1 t_in t_out diameter parent_diameter
+  box   (S, 6)    float64         widened local box per slot: lo xyz, hi xyz
+  mf    (S, 13)   float64         per slot, columns M_*
   mi    (S, 4)    int32           per slot: depth, stalled, last split (0 u, 1 v), trace step
   order (S,)      int32           stack position -> slot (children swap order without copying)
+  f32   (1,)      float32         with its int32 view i32: rounds to and steps on the float32 grid
 """
 from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
-from .bezier import control_box, control_box_rational, normal_at, split_u, split_u_cubic, split_v, split_v_cubic
+from .bezier import control_box, control_box_rational, split_u, split_u_cubic, split_v, split_v_cubic
+from .ray import (H_DEPTH, H_DU, H_DV, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, R_D, R_DT, R_N1,
+                  R_N2, R_O, R_T0, slab)
 
 # Termination criteria and split heuristics (codes as in options.CRITERION_CODE / SPLIT_CODE).
 FLOAT, FIXED, ADAPTIVE, MANTISSA = 0, 1, 2, 3
@@ -32,19 +47,21 @@ SPLIT_LENGTH, SPLIT_CROSS = 0, 1
 # Trace events.
 MISS, PRUNED, SPLIT, HIT = 0, 1, 2, 3
 EVENT_NAMES = ("miss", "pruned", "split", "hit")
-
-# Ray record (float64): origin, direction, 1/direction, t_min, threshold of detail T(t) = T0 + dT*t.
-R_O, R_D, R_INV, R_TMIN, R_T0, R_DT = 0, 3, 6, 9, 10, 11
-RAY_LEN = 12
-# Hit record (float64): entry/exit t of the hit box, world box, (u, v), patch, depth, interval sizes.
-H_TIN, H_TOUT, H_LO, H_HI, H_U, H_V, H_PATCH, H_DEPTH, H_DU, H_DV = 0, 1, 2, 5, 8, 9, 10, 11, 12, 13
-HIT_LEN = 14
 # Per-slot float metadata.
-M_U0, M_U1, M_V0, M_V1, M_TIN, M_TOUT, M_D, M_DPAR = 0, 1, 2, 3, 4, 5, 6, 7
+M_U0, M_U1, M_V0, M_V1 = 0, 1, 2, 3  # parameter interval
+M_TIN, M_TOUT = 4, 5                  # slab interval of the box
+M_D = 6                               # L1 diameter of the widened local box
+M_DPAR = 7                            # the parent's criterion diameter
+M_OX = 8                              # 8, 9, 10: offset, patch frame = local + offset
+M_MAG = 11                            # largest |local coordinate| of the box
+M_GULP = 12                           # working-grid ulp at the box's frame magnitude (a bound)
+MF_LEN = 13
 # Trace record columns (float64): u0 u1 v0 v1 lo xyz hi xyz diameter; (int32): patch depth event.
 TRACE_F, TRACE_I = 11, 3
 
-_T_SLACK = 4.0 * 2.0 ** -52  # widen slab exits by a few float64 ulps: grazing rays keep their boxes
+RECENTRE = 16.0     # re-centre once the box is this many times smaller than its coordinates
+SUB_ERR_BITS = 8    # subdivision rounding stays below 2^-(bits - 8) of the local magnitude
+GRID_PREFILTER = 64.0  # boxes wider than this many grid ulps certainly still shrink on the grid
 
 
 def max_depth_for(precision_bits: int) -> int:
@@ -52,72 +69,133 @@ def max_depth_for(precision_bits: int) -> int:
     return 2 * (precision_bits + 16)
 
 
-@njit(cache=True, nogil=True)
-def make_ray(ray, ox, oy, oz, dx, dy, dz, t_min, t0, dt):
-    """Fill a ray record; zero direction components get an infinite inverse (handled in `slab`)."""
-    ray[0] = ox
-    ray[1] = oy
-    ray[2] = oz
-    ray[3] = dx
-    ray[4] = dy
-    ray[5] = dz
-    for c in range(3):
-        d = ray[R_D + c]
-        ray[R_INV + c] = 1.0 / d if d != 0.0 else math.inf
-    ray[R_TMIN] = t_min
-    ray[R_T0] = t0
-    ray[R_DT] = dt
+@njit(cache=True, nogil=True, inline='always')
+def _ulp(x, bits):
+    """Spacing of `bits`-bit floats at |x| (x != 0)."""
+    return math.ldexp(1.0, math.frexp(x)[1] - bits)
 
 
 @njit(cache=True, nogil=True, inline='always')
-def slab(bx, fx, fy, fz, ray):
-    """Ray against the box bx (lo xyz, hi xyz) shifted by (fx, fy, fz); float64 throughout.
-
-    Returns (hit, t_in, t_out) with t_in clamped to the ray's t_min. A zero
-    direction component is tested by containment instead of by division, so
-    no inf * 0 = NaN can appear.
-    """
-    t_in = ray[R_TMIN]
-    t_out = math.inf
-    for c in range(3):
-        f = fx if c == 0 else (fy if c == 1 else fz)
-        lo = bx[c] + f - ray[R_O + c]
-        hi = bx[3 + c] + f - ray[R_O + c]
-        if ray[R_D + c] == 0.0:
-            if lo > 0.0 or hi < 0.0:
-                return False, t_in, t_out
-            continue
-        inv = ray[R_INV + c]
-        a = lo * inv
-        b = hi * inv
-        if a > b:
-            a, b = b, a
-        b += abs(b) * _T_SLACK
-        if a > t_in:
-            t_in = a
-        if b < t_out:
-            t_out = b
-    return t_in <= t_out, t_in, t_out
+def _grid_down(q, bits, f32, i32):
+    """The largest working-precision number <= q (float64 is its own grid)."""
+    if bits >= 53:
+        return q
+    f32[0] = q
+    v = float(f32[0])
+    if v == 0.0:
+        return v if v <= q else -1.401298464324817e-45  # the negative float32 nearest zero
+    # Rounded up? Step one float32 down, branch-free (the direction is random, a branch mispredicts).
+    i32[0] -= (v > q) * (1 if v > 0.0 else -1)
+    return float(f32[0])
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _l1(box, s):
-    """L1 diameter of box[s]; rounded in float64 (box corners are exact widenings)."""
-    return (box[s, 3] - box[s, 0]) + (box[s, 4] - box[s, 1]) + (box[s, 5] - box[s, 2])
+def _grid_up(q, bits, f32, i32):
+    return -_grid_down(-q, bits, f32, i32)
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _within_ulps(box, s, fx, fy, fz, ulps, bits):
-    """Are the box's world corners within `ulps` units in the last place (of `bits`-bit floats)?"""
+def _to_working(q, bits, f32):
+    """q rounded to the working precision."""
+    if bits >= 53:
+        return q
+    f32[0] = q
+    return float(f32[0])
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _widen(box, mf, s, eps, p, sub_scale):
+    """Widen the raw control box of slot s by the error bounds; sets M_MAG and M_D.
+
+    sub_scale = 2^-(bits - SUB_ERR_BITS): the subdivision's rounding relative to the magnitude."""
+    mag = 0.0
+    for k in range(6):
+        mag = max(mag, abs(box[s, k]))
+    mf[s, M_MAG] = mag
+    sub = mag * sub_scale
     for c in range(3):
-        f = fx if c == 0 else (fy if c == 1 else fz)
-        lo = box[s, c] + f
-        hi = box[s, 3 + c] + f
+        e = eps[p, c] + sub
+        box[s, c] -= e
+        box[s, 3 + c] += e
+    mf[s, M_D] = (box[s, 3] - box[s, 0]) + (box[s, 4] - box[s, 1]) + (box[s, 5] - box[s, 2])
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _grid_l1(box, mf, s, bits, f32, i32):
+    """L1 diameter of slot s's world box rounded outward onto the working grid, summed in
+    working precision (so extents far below the others' ulps do not count)."""
+    total = 0.0
+    for c in range(3):
+        o = mf[s, M_OX + c]
+        total += _grid_up(box[s, 3 + c] + o, bits, f32, i32) - _grid_down(box[s, c] + o, bits, f32, i32)
+    return _to_working(total, bits, f32)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _within_ulps(box, mf, s, ulps, bits, f32, i32):
+    """Are the grid box's corners within `ulps` units in the last place (of `bits`-bit floats)
+    of their frame coordinates?"""
+    for c in range(3):
+        lo = _grid_down(box[s, c] + mf[s, M_OX + c], bits, f32, i32)
+        hi = _grid_up(box[s, 3 + c] + mf[s, M_OX + c], bits, f32, i32)
         mag = max(abs(lo), abs(hi))
-        if mag == 0.0:
-            continue
-        ulp = math.ldexp(1.0, math.frexp(mag)[1] - bits)
-        if hi - lo > ulps * ulp:
+        if mag > 0.0 and hi - lo > ulps * _ulp(mag, bits):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _raw_box(buf, box, s, count, is_rational):
+    if is_rational:
+        control_box_rational(buf, s, count, box)
+    else:
+        control_box(buf, s, count, box)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _recentre(buf, box, mf, s, count, is_rational, f32, eps, p, bits, sub_scale):
+    """Shift slot s's control points so its box is centred near 0 (the shift rounded to the
+    working precision: for points close to the shift the subtraction is exact, Sterbenz)."""
+    for c in range(3):
+        shift = _to_working(0.5 * (box[s, c] + box[s, 3 + c]), bits, f32)
+        if is_rational:
+            for k in range(count):  # w x - shift w, with one rounding
+                buf[s, c, k] = float(buf[s, c, k]) - shift * float(buf[s, 3, k])
+        else:
+            for k in range(count):
+                buf[s, c, k] = float(buf[s, c, k]) - shift
+        mf[s, M_OX + c] += shift
+    _raw_box(buf, box, s, count, is_rational)
+    _widen(box, mf, s, eps, p, sub_scale)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _hull_hit(buf, s, count, is_rational, mf, ray, eps, p, sub_scale):
+    """Does the ray meet the convex hull of slot s's control points (widened by the error
+    bounds)? Tested as the hull's extent across two planes that meet in the ray, so a ray
+    clipping a corner of a thin, tilted sub-patch's box is not taken for a hit."""
+    sub = mf[s, M_MAG] * sub_scale
+    for plane in range(2):
+        base = R_N1 if plane == 0 else R_N2
+        n0 = ray[base]
+        n1 = ray[base + 1]
+        n2 = ray[base + 2]
+        rel0 = mf[s, M_OX] - ray[R_O]
+        rel1 = mf[s, M_OX + 1] - ray[R_O + 1]
+        rel2 = mf[s, M_OX + 2] - ray[R_O + 2]
+        offset = rel0 * n0 + rel1 * n1 + rel2 * n2
+        lo = math.inf
+        hi = -math.inf
+        for k in range(count):
+            x = _corner(buf, s, k, 0, is_rational)
+            y = _corner(buf, s, k, 1, is_rational)
+            z = _corner(buf, s, k, 2, is_rational)
+            dist = x * n0 + y * n1 + z * n2
+            lo = min(lo, dist)
+            hi = max(hi, dist)
+        slack = ((eps[p, 0] + sub) * abs(n0) + (eps[p, 1] + sub) * abs(n1) + (eps[p, 2] + sub) * abs(n2)
+                 + 2.0 ** -51 * (abs(rel0) + abs(rel1) + abs(rel2) + max(abs(lo), abs(hi))))
+        if offset + lo > slack or offset + hi < -slack:
             return False
     return True
 
@@ -164,8 +242,9 @@ def _split_direction(buf, s, m, n, count, ray, split_mode, rational):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _record(trace, p, depth, mf, box, s, fx, fy, fz, d, event):
-    """Append one box to the trace; returns its step index (-1 when the trace is full)."""
+def _record(trace, p, depth, mf, box, s, event, frame):
+    """Append slot s's box (in world coordinates) to the trace; returns its step index
+    (-1 when the trace is full)."""
     tf, ti, tn = trace
     k = tn[0]
     if k >= tf.shape[0]:
@@ -174,13 +253,10 @@ def _record(trace, p, depth, mf, box, s, fx, fy, fz, d, event):
     tn[0] = k + 1
     for c in range(4):
         tf[k, c] = mf[s, M_U0 + c]
-    tf[k, 4] = box[s, 0] + fx
-    tf[k, 5] = box[s, 1] + fy
-    tf[k, 6] = box[s, 2] + fz
-    tf[k, 7] = box[s, 3] + fx
-    tf[k, 8] = box[s, 4] + fy
-    tf[k, 9] = box[s, 5] + fz
-    tf[k, 10] = d
+    for c in range(3):
+        tf[k, 4 + c] = box[s, c] + mf[s, M_OX + c] + frame[p, c]
+        tf[k, 7 + c] = box[s, 3 + c] + mf[s, M_OX + c] + frame[p, c]
+    tf[k, 10] = mf[s, M_D]
     ti[k, 0] = p
     ti[k, 1] = depth
     ti[k, 2] = event
@@ -194,32 +270,49 @@ def _set_event(trace, step, event):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _open_child(box, mf, mi, s, fx, fy, fz, ray, best_t, p, trace):
-    """Test the fresh sub-patch in slot s (its box already computed) against the ray;
-    returns 1 if it stays a candidate."""
-    mf[s, M_D] = _l1(box, s)
-    ok, t_in, t_out = slab(box[s], fx, fy, fz, ray)
+def _open_child(box, mf, mi, s, ray, best_t, p, frame, trace):
+    """Test slot s's (widened) box against the ray; returns 1 if it stays a candidate."""
+    ok, t_in, t_out = slab(box[s], mf[s, M_OX], mf[s, M_OX + 1], mf[s, M_OX + 2], ray)
     mf[s, M_TIN] = t_in
     mf[s, M_TOUT] = t_out
-    alive = ok and t_in < best_t
+    alive = ok & (t_in < best_t)
     if trace is not None:
-        event = SPLIT if alive else (PRUNED if ok else MISS)  # SPLIT is a placeholder until popped
-        mi[s, 3] = _record(trace, p, mi[s, 0], mf, box, s, fx, fy, fz, mf[s, M_D], event)
+        event = SPLIT if alive else (PRUNED if ok else MISS)  # SPLIT stands until it is popped
+        mi[s, 3] = _record(trace, p, mi[s, 0], mf, box, s, event, frame)
     return 1 if alive else 0
 
 
+@njit(cache=True, nogil=True, inline='always')
+def _report(hit, box, mf, a, p, depth, bits, f32, i32, frame):
+    """Record slot a as the closest hit so far: its grid box, in world coordinates."""
+    hit[H_TIN] = mf[a, M_TIN]
+    hit[H_TOUT] = mf[a, M_TOUT]
+    for c in range(3):
+        o = mf[a, M_OX + c]
+        hit[H_LO + c] = _grid_down(box[a, c] + o, bits, f32, i32) + frame[p, c]
+        hit[H_HI + c] = _grid_up(box[a, 3 + c] + o, bits, f32, i32) + frame[p, c]
+    hit[H_U] = 0.5 * (mf[a, M_U0] + mf[a, M_U1])
+    hit[H_V] = 0.5 * (mf[a, M_V0] + mf[a, M_V1])
+    hit[H_DU] = mf[a, M_U1] - mf[a, M_U0]
+    hit[H_DV] = mf[a, M_V1] - mf[a, M_V0]
+    hit[H_PATCH] = p
+    hit[H_DEPTH] = depth
+
+
 @njit(cache=True, nogil=True)
-def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, ray, hit,
+def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ray, hit,
                  criterion, param, split_mode, max_depth, bits,
-                 buf, box, mf, mi, order, trace):
+                 buf, box, mf, mi, order, f32, i32, lray, trace):
     """Closest intersection of `ray` with patch p beyond t_min and before hit[H_TIN].
 
     Updates `hit` when a closer hit box is found; returns the number of boxes computed.
     ctrl: (4, total points) working dtype, local to frame[p] (float64 (n_patches, 3)); row 3
     holds the weights, rows 0-2 are premultiplied by them for rational[p] patches.
-    criterion/param: FLOAT (-), FIXED (L1 size), ADAPTIVE (fraction folded into ray T0/dT),
+    eps: (n_patches, 3) float64 bound of the stored points' rounding error per axis.
+    criterion/param: FLOAT (-), FIXED (L1 size), ADAPTIVE (uses the ray's T0, dT),
     MANTISSA (ulps); every criterion also stops when the box stops shrinking.
-    bits: mantissa bits of the working dtype (24 or 53). trace: None or (tf, ti, tn).
+    bits: mantissa bits of the working dtype (24 or 53). lray: scratch ray record (the ray in
+    the patch's frame). trace: None or (tf, ti, tn).
     """
     m = deg_u[p]
     n = deg_v[p]
@@ -228,9 +321,11 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, ray, hit,
     ncoord = 4 if is_rational else 3
     cubic = m == 3 and n == 3 and not is_rational
     start = pstart[p]
-    fx = frame[p, 0]
-    fy = frame[p, 1]
-    fz = frame[p, 2]
+    for k in range(lray.shape[0]):
+        lray[k] = ray[k]
+    for c in range(3):
+        lray[R_O + c] = ray[R_O + c] - frame[p, c]
+    ray = lray
     s = order[0]
     for c in range(ncoord):
         for k in range(count):
@@ -240,15 +335,20 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, ray, hit,
     mf[s, M_V0] = 0.0
     mf[s, M_V1] = 1.0
     mf[s, M_DPAR] = math.inf
+    for c in range(3):
+        mf[s, M_OX + c] = 0.0
     mi[s, 0] = 0
     mi[s, 1] = 0
     mi[s, 2] = -1
+    sub_scale = math.ldexp(1.0, SUB_ERR_BITS - bits)
+    _raw_box(buf, box, s, count, is_rational)
+    _widen(box, mf, s, eps, p, sub_scale)
+    frame_mag = 0.0
+    for k in range(6):
+        frame_mag = max(frame_mag, abs(box[s, k]))
+    mf[s, M_GULP] = _ulp(frame_mag, bits) if frame_mag > 0.0 else 0.0
     effort = 1
-    if is_rational:
-        control_box_rational(buf, s, count, box, bits)
-    else:
-        control_box(buf, s, count, box)
-    sp = _open_child(box, mf, mi, s, fx, fy, fz, ray, hit[H_TIN], p, trace)
+    sp = _open_child(box, mf, mi, s, ray, hit[H_TIN], p, frame, trace)
     while sp > 0:
         sp -= 1
         a = order[sp]
@@ -258,35 +358,38 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, ray, hit,
             continue
         d = mf[a, M_D]
         depth = mi[a, 0]
+        # The criteria's measure: the grid box's L1 diameter (>= d) once d is near a threshold.
+        limit = GRID_PREFILTER * mf[a, M_GULP]
+        if criterion == FIXED:
+            limit = max(limit, param)
+        elif criterion == ADAPTIVE:
+            limit = max(limit, ray[R_T0] + ray[R_DT] * mf[a, M_TIN])
+        d_crit = _grid_l1(box, mf, a, bits, f32, i32) if d <= limit else d
         stop = depth >= max_depth
         if criterion == FIXED:
-            stop = stop or d <= param
+            stop = stop or d_crit <= param
         elif criterion == ADAPTIVE:
-            stop = stop or d <= ray[R_T0] + ray[R_DT] * mf[a, M_TIN]
+            stop = stop or d_crit <= ray[R_T0] + ray[R_DT] * mf[a, M_TIN]
         elif criterion == MANTISSA:
-            stop = stop or _within_ulps(box, a, fx, fy, fz, param, bits)
+            stop = stop or _within_ulps(box, mf, a, param, bits, f32, i32)
         # Float precision: the box did not shrink, even after halving the other direction too.
-        shrank = d < mf[a, M_DPAR]
+        shrank = d_crit < mf[a, M_DPAR]
         if not shrank and mi[a, 1] == 1:
             stop = True
         if stop:
+            found = _hull_hit(buf, a, count, is_rational, mf, ray, eps, p, sub_scale)
             if trace is not None:
-                _set_event(trace, mi[a, 3], HIT)
-            hit[H_TIN] = mf[a, M_TIN]
-            hit[H_TOUT] = mf[a, M_TOUT]
-            hit[H_LO] = box[a, 0] + fx
-            hit[H_LO + 1] = box[a, 1] + fy
-            hit[H_LO + 2] = box[a, 2] + fz
-            hit[H_HI] = box[a, 3] + fx
-            hit[H_HI + 1] = box[a, 4] + fy
-            hit[H_HI + 2] = box[a, 5] + fz
-            hit[H_U] = 0.5 * (mf[a, M_U0] + mf[a, M_U1])
-            hit[H_V] = 0.5 * (mf[a, M_V0] + mf[a, M_V1])
-            hit[H_DU] = mf[a, M_U1] - mf[a, M_U0]
-            hit[H_DV] = mf[a, M_V1] - mf[a, M_V0]
-            hit[H_PATCH] = p
-            hit[H_DEPTH] = depth
+                _set_event(trace, mi[a, 3], HIT if found else MISS)
+            if found:
+                _report(hit, box, mf, a, p, depth, bits, f32, i32, frame)
+                if trace is not None and mi[a, 3] >= 0:  # the hit step shows the reported grid box
+                    for c in range(6):
+                        trace[0][mi[a, 3], 4 + c] = hit[H_LO + c]
+                    trace[2][2] = mi[a, 3]  # steps are in creation order; this one is reported
             continue
+        ext = max(box[a, 3] - box[a, 0], box[a, 4] - box[a, 1], box[a, 5] - box[a, 2])
+        if ext * RECENTRE < mf[a, M_MAG]:
+            _recentre(buf, box, mf, a, count, is_rational, f32, eps, p, bits, sub_scale)
         if shrank:
             direction = _split_direction(buf, a, m, n, count, ray, split_mode, is_rational)
         else:
@@ -302,12 +405,8 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, ray, hit,
                 split_u(buf, a, b, m, n, ncoord)
             else:
                 split_v(buf, a, b, m, n, ncoord)
-            if is_rational:
-                control_box_rational(buf, a, count, box, bits)
-                control_box_rational(buf, b, count, box, bits)
-            else:
-                control_box(buf, a, count, box)
-                control_box(buf, b, count, box)
+            _raw_box(buf, box, a, count, is_rational)
+            _raw_box(buf, box, b, count, is_rational)
         for c in range(4):
             mf[b, M_U0 + c] = mf[a, M_U0 + c]
         if direction == 0:
@@ -318,102 +417,27 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, ray, hit,
             mid = 0.5 * (mf[a, M_V0] + mf[a, M_V1])
             mf[a, M_V1] = mid
             mf[b, M_V0] = mid
+        for c in range(3):
+            mf[b, M_OX + c] = mf[a, M_OX + c]
+        mf[b, M_GULP] = mf[a, M_GULP]
         stalled = 0 if shrank else 1
         for child in (a, b):
-            mf[child, M_DPAR] = d
+            _widen(box, mf, child, eps, p, sub_scale)
+            mf[child, M_DPAR] = d_crit
             mi[child, 0] = depth + 1
             mi[child, 1] = stalled
             mi[child, 2] = direction
-        alive_a = _open_child(box, mf, mi, a, fx, fy, fz, ray, hit[H_TIN], p, trace)
-        alive_b = _open_child(box, mf, mi, b, fx, fy, fz, ray, hit[H_TIN], p, trace)
+        alive_a = _open_child(box, mf, mi, a, ray, hit[H_TIN], p, frame, trace)
+        alive_b = _open_child(box, mf, mi, b, ray, hit[H_TIN], p, frame, trace)
         effort += 2
-        if alive_a and alive_b:
-            near_a = mf[a, M_TIN] <= mf[b, M_TIN]
-            order[sp] = b if near_a else a  # far half below, visited later
-            order[sp + 1] = a if near_a else b
-            sp += 2
-        elif alive_a or alive_b:
-            order[sp] = a if alive_a else b
-            order[sp + 1] = b if alive_a else a
-            sp += 1
+        # Push the far half below the near one; only live halves count. Selects, not branches:
+        # which half survives is as good as random, and positions sp, sp+1 keep slots {a, b}.
+        near_a = mf[a, M_TIN] <= mf[b, M_TIN]
+        far = b if near_a else a
+        near = a if near_a else b
+        alive_far = alive_b if near_a else alive_a
+        alive_near = alive_a if near_a else alive_b
+        order[sp] = far if alive_far else near
+        order[sp + 1] = near if alive_far else far
+        sp += alive_far + alive_near
     return effort
-
-
-@njit(cache=True, nogil=True)
-def trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame,
-              node_box, node_child, node_patch,
-              criterion, param, split_mode, max_depth, bits,
-              buf, box, mf, mi, order, node_stack, node_tin, trace):
-    """Closest hit of one ray in the scene: BVH traversal, near child first, sharing the
-    shrinking ray interval with the patch searches. Returns the total effort (patch boxes).
-
-    node_box: (N, 6) float64 world boxes; node_child: (N, 2) int32 children (-1 at a leaf);
-    node_patch: (N,) int32 patch of a leaf. hit[H_TIN] must be the initial t_max (inf).
-    """
-    effort = 0
-    ok, t_in, t_out = slab(node_box[0], 0.0, 0.0, 0.0, ray)
-    if not ok:
-        return 0
-    top = 0
-    node_stack[0] = 0
-    node_tin[0] = t_in
-    top = 1
-    while top > 0:
-        top -= 1
-        node = node_stack[top]
-        if node_tin[top] >= hit[H_TIN]:
-            continue
-        left = node_child[node, 0]
-        if left < 0:
-            effort += search_patch(node_patch[node], ctrl, pstart, deg_u, deg_v, rational, frame, ray, hit,
-                                   criterion, param, split_mode, max_depth, bits,
-                                   buf, box, mf, mi, order, trace)
-            continue
-        right = node_child[node, 1]
-        ok_l, tl, _ = slab(node_box[left], 0.0, 0.0, 0.0, ray)
-        ok_r, tr, _ = slab(node_box[right], 0.0, 0.0, 0.0, ray)
-        ok_l = ok_l and tl < hit[H_TIN]
-        ok_r = ok_r and tr < hit[H_TIN]
-        if ok_l and ok_r:
-            far_first = tl <= tr
-            node_stack[top] = right if far_first else left
-            node_tin[top] = tr if far_first else tl
-            node_stack[top + 1] = left if far_first else right
-            node_tin[top + 1] = tl if far_first else tr
-            top += 2
-        elif ok_l or ok_r:
-            node_stack[top] = left if ok_l else right
-            node_tin[top] = tl if ok_l else tr
-            top += 1
-    return effort
-
-
-@njit(cache=True, nogil=True)
-def hit_normal(hit, ctrl, pstart, deg_u, deg_v, rational, ray, pts, scratch, work, out):
-    """Unit normal at the hit's (u, v), facing the ray; pts: (4, >= points) float64 scratch,
-    scratch: (4, >= max degree + 1), work: (6, 4)."""
-    p = int(hit[H_PATCH])
-    m = deg_u[p]
-    n = deg_v[p]
-    start = pstart[p]
-    count = (m + 1) * (n + 1)
-    for c in range(4):
-        for k in range(count):
-            pts[c, k] = ctrl[c, start + k]
-    if not normal_at(pts, m, n, hit[H_U], hit[H_V], rational[p] != 0, scratch, work, out):
-        # A fully collapsed patch: face the ray.
-        length = math.sqrt(ray[3] ** 2 + ray[4] ** 2 + ray[5] ** 2)
-        for c in range(3):
-            out[c] = -ray[R_D + c] / length
-        return
-    if out[0] * ray[3] + out[1] * ray[4] + out[2] * ray[5] > 0.0:
-        for c in range(3):
-            out[c] = -out[c]
-
-
-def scratch_for(n_points: int, max_depth: int, dtype):
-    """Per-thread scratch arrays for search_patch / trace_ray (see module docstring)."""
-    slots = max_depth + 2
-    return (np.zeros((slots, 4, n_points), dtype), np.zeros((slots, 6)), np.zeros((slots, 8)),
-            np.zeros((slots, 4), np.int32), np.arange(slots, dtype=np.int32),
-            np.zeros(128, np.int32), np.zeros(128))

@@ -11,13 +11,14 @@ import math
 import numpy as np
 from numba import njit
 
-from .intersect import (H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN,
-                        hit_normal, make_ray, trace_ray)
+from .intersect import MF_LEN
+from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN, make_ray
+from .traverse import hit_normal, trace_ray
 
 
 @njit(cache=True, nogil=True)
 def render_tile(y0, y1, x0, x1, origins, dirs,
-                ctrl, pstart, deg_u, deg_v, rational, frame, node_box, node_child, node_patch,
+                ctrl, pstart, deg_u, deg_v, rational, frame, eps, node_box, node_child, node_patch,
                 criterion, param, split_mode, max_depth, bits, detail_slope, max_points, stack_nodes,
                 out_hit, out_t, out_pos, out_lo, out_hi, out_normal, out_uv, out_patch, out_effort):
     """Trace pixels [y0, y1) x [x0, x1). origins/dirs: (H, W, 3) float64 rays as traced.
@@ -28,9 +29,12 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
     slots = max_depth + 2
     buf = np.zeros((slots, 4, max_points), ctrl.dtype)
     box = np.zeros((slots, 6))
-    mf = np.zeros((slots, 8))
+    mf = np.zeros((slots, MF_LEN))
     mi = np.zeros((slots, 4), np.int32)
     order = np.arange(slots).astype(np.int32)
+    f32 = np.zeros(1, np.float32)
+    i32 = f32.view(np.int32)
+    lray = np.zeros(RAY_LEN)
     node_stack = np.zeros(stack_nodes, np.int32)
     node_tin = np.zeros(stack_nodes)
     ray = np.zeros(RAY_LEN)
@@ -48,10 +52,10 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
             make_ray(ray, origins[y, x, 0], origins[y, x, 1], origins[y, x, 2], dx, dy, dz,
                      0.0, 0.0, detail_slope * length)
             hit[H_TIN] = math.inf
-            out_effort[y, x] = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame,
+            out_effort[y, x] = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, eps,
                                          node_box, node_child, node_patch,
                                          criterion, param, split_mode, max_depth, bits,
-                                         buf, box, mf, mi, order, node_stack, node_tin, None)
+                                         buf, box, mf, mi, order, f32, i32, lray, node_stack, node_tin, None)
             if hit[H_TIN] == math.inf:
                 out_hit[y, x] = False
                 out_t[y, x] = math.inf

@@ -12,8 +12,9 @@ import numpy as np
 
 from .camera import View, primary_rays, view_of
 from .geometry import Geometry, prepare
-from .intersect import (EVENT_NAMES, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN,
-                        TRACE_F, TRACE_I, hit_normal, make_ray, scratch_for, trace_ray)
+from .intersect import EVENT_NAMES, TRACE_F, TRACE_I
+from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN, make_ray
+from .traverse import hit_normal, scratch_for, trace_ray
 from .options import Options
 from .render import kernel_args
 
@@ -37,6 +38,7 @@ class PixelTrace:
     steps_f: np.ndarray  # (k, 11): u0 u1 v0 v1, box lo xyz, box hi xyz, L1 diameter
     steps_i: np.ndarray  # (k, 3): patch, depth, event code
     truncated: bool = False
+    reported_step: int = -1  # the step whose box is the reported hit box
 
     @property
     def diameters(self) -> np.ndarray:
@@ -47,9 +49,11 @@ class PixelTrace:
         return [EVENT_NAMES[e] for e in self.steps_i[:, 2]]
 
     def hit_step(self) -> int:
-        """Index of the step that produced the reported hit box (the last 'hit' event), or -1."""
-        idx = np.nonzero(self.steps_i[:, 2] == 3)[0]
-        return int(idx[-1]) if len(idx) else -1
+        """Index of the step that produced the reported hit box, or -1. Steps are listed in the
+        order their boxes were computed; a hit found later in a box computed earlier (the far
+        half of an ancestor, closer along the ray) replaces earlier hits, so this need not be
+        the last 'hit' step."""
+        return self.reported_step if self.hit else -1
 
     def to_json(self) -> dict:
         """The contract's trace object (scene-format.md), with a summary added."""
@@ -78,12 +82,13 @@ class PixelTrace:
 def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angle: float,
                     pixel=(0, 0), capacity: int = TRACE_CAPACITY) -> PixelTrace:
     """Trace one ray with step recording; same kernel and options as the renderer."""
-    (ctrl, pstart, deg_u, deg_v, rational, frame, node_box, node_child, node_patch, criterion, param, split_mode,
+    (ctrl, pstart, deg_u, deg_v, rational, frame, eps, node_box, node_child, node_patch, criterion, param, split_mode,
      max_depth, bits, slope, max_points, stack_nodes) = kernel_args(geom, opts, pixel_angle)
-    buf, box, mf, mi, order, node_stack, node_tin = scratch_for(max_points, max_depth, ctrl.dtype)
+    buf, box, mf, mi, order, f32, i32, lray = scratch_for(max_points, max_depth, ctrl.dtype)
     node_stack = np.zeros(max(stack_nodes, 128), np.int32)
     node_tin = np.zeros(len(node_stack))
-    trace = (np.zeros((capacity, TRACE_F)), np.zeros((capacity, TRACE_I), np.int32), np.zeros(2, np.int64))
+    trace = (np.zeros((capacity, TRACE_F)), np.zeros((capacity, TRACE_I), np.int32),
+             np.array([0, 0, -1], np.int64))  # steps, truncated, reported step
     o = np.asarray(origin, np.float64)
     d = np.asarray(direction, np.float64)
     length = math.sqrt(float(d @ d))
@@ -91,9 +96,9 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
     hit = np.zeros(HIT_LEN)
     make_ray(ray, o[0], o[1], o[2], d[0], d[1], d[2], 0.0, 0.0, slope * length)
     hit[H_TIN] = math.inf
-    effort = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, node_box, node_child, node_patch,
-                       criterion, param, split_mode, max_depth, bits,
-                       buf, box, mf, mi, order, node_stack, node_tin, trace)
+    effort = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, eps,
+                       node_box, node_child, node_patch, criterion, param, split_mode, max_depth, bits,
+                       buf, box, mf, mi, order, f32, i32, lray, node_stack, node_tin, trace)
     k = int(trace[2][0])
     found = hit[H_TIN] < math.inf
     lo = hit[H_LO:H_LO + 3].copy()
@@ -108,7 +113,7 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
         t = min(max(float((centre - o) @ d) / (length * length), hit[H_TIN]), hit[H_TOUT])
     return PixelTrace(tuple(pixel), found, int(hit[H_PATCH]) if found else -1, t, centre, lo, hi, normal,
                       np.array([hit[H_U], hit[H_V]]), int(effort), trace[0][:k].copy(), trace[1][:k].copy(),
-                      bool(trace[2][1]))
+                      bool(trace[2][1]), int(trace[2][2]))
 
 
 def trace_pixel(scene, opts: Options, x: int, y: int, *, size=None, view: View | None = None,

@@ -1,0 +1,91 @@
+"""Ray and hit records (flat float64 arrays) and the ray-box slab test."""
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+# Ray record: origin, direction, 1/direction, t_min, threshold of detail T(t) = T0 + dT*t,
+# and the unit normals of two orthogonal planes that meet in the ray (for hull tests).
+R_O, R_D, R_INV, R_TMIN, R_T0, R_DT, R_N1, R_N2 = 0, 3, 6, 9, 10, 11, 12, 15
+RAY_LEN = 18
+# Hit record: entry/exit t of the hit box, world box, (u, v), patch, depth, interval sizes.
+H_TIN, H_TOUT, H_LO, H_HI, H_U, H_V, H_PATCH, H_DEPTH, H_DU, H_DV = 0, 1, 2, 5, 8, 9, 10, 11, 12, 13
+HIT_LEN = 14
+
+_T_SLACK = 4.0 * 2.0 ** -52  # widen slab exits by a few float64 ulps: grazing rays keep their boxes
+
+
+@njit(cache=True, nogil=True)
+def make_ray(ray, ox, oy, oz, dx, dy, dz, t_min, t0, dt):
+    """Fill a ray record; zero direction components get an infinite inverse (see `slab`)."""
+    ray[0] = ox
+    ray[1] = oy
+    ray[2] = oz
+    ray[3] = dx
+    ray[4] = dy
+    ray[5] = dz
+    for c in range(3):
+        d = ray[R_D + c]
+        ray[R_INV + c] = 1.0 / d if d != 0.0 else math.inf
+    ray[R_TMIN] = t_min
+    ray[R_T0] = t0
+    ray[R_DT] = dt
+    # n1 = d x (axis of d's smallest component), n2 = d x n1, both normalised.
+    ax = 0
+    if abs(dy) < abs(dx) and abs(dy) <= abs(dz):
+        ax = 1
+    elif abs(dz) < abs(dx) and abs(dz) < abs(dy):
+        ax = 2
+    ex = 1.0 if ax == 0 else 0.0
+    ey = 1.0 if ax == 1 else 0.0
+    ez = 1.0 if ax == 2 else 0.0
+    ax_, ay_, az_ = dy * ez - dz * ey, dz * ex - dx * ez, dx * ey - dy * ex
+    length = math.sqrt(ax_ * ax_ + ay_ * ay_ + az_ * az_)
+    if length > 0.0:
+        ax_ /= length
+        ay_ /= length
+        az_ /= length
+    bx_, by_, bz_ = dy * az_ - dz * ay_, dz * ax_ - dx * az_, dx * ay_ - dy * ax_
+    length = math.sqrt(bx_ * bx_ + by_ * by_ + bz_ * bz_)
+    if length > 0.0:
+        bx_ /= length
+        by_ /= length
+        bz_ /= length
+    ray[R_N1] = ax_
+    ray[R_N1 + 1] = ay_
+    ray[R_N1 + 2] = az_
+    ray[R_N2] = bx_
+    ray[R_N2 + 1] = by_
+    ray[R_N2 + 2] = bz_
+
+
+@njit(cache=True, nogil=True, inline='always')
+def slab(bx, fx, fy, fz, ray):
+    """Ray against the box bx (lo xyz, hi xyz) shifted by (fx, fy, fz); float64 throughout.
+
+    Returns (hit, t_in, t_out) with t_in clamped to the ray's t_min. A zero
+    direction component is tested by containment instead of by division, so
+    no inf * 0 = NaN can appear.
+    """
+    t_in = ray[R_TMIN]
+    t_out = math.inf
+    for c in range(3):
+        f = fx if c == 0 else (fy if c == 1 else fz)
+        lo = bx[c] + f - ray[R_O + c]
+        hi = bx[3 + c] + f - ray[R_O + c]
+        if ray[R_D + c] == 0.0:
+            if lo > 0.0 or hi < 0.0:
+                return False, t_in, t_out
+            continue
+        inv = ray[R_INV + c]
+        a = lo * inv
+        b = hi * inv
+        if a > b:
+            a, b = b, a
+        b += abs(b) * _T_SLACK
+        if a > t_in:
+            t_in = a
+        if b < t_out:
+            t_out = b
+    return t_in <= t_out, t_in, t_out
