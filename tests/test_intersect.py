@@ -122,13 +122,7 @@ def outside_by(r, bits):
     return np.where(out > 0, out / np.where(unit > 0, unit, np.inf), 0.0).max(axis=1)
 
 
-FLAT_XFAIL = pytest.mark.xfail(strict=True, reason=(
-    "kernel: a float32 hit box is about 1 ulp of the object's local coordinates wide and the ray may cross "
-    "it up to diameter/cos(angle) away from the surface point; for world coordinates much smaller than the "
-    "object (x = 0.014 on a patch 1.9 wide) that is up to ~55 ulps of the coordinate, 6% of the rays here"))
-
-
-@pytest.mark.parametrize("name", [n if n != "tilted" else pytest.param(n, marks=FLAT_XFAIL) for n in FLAT])
+@pytest.mark.parametrize("name", list(FLAT))
 def test_flat_patch_box_contains_plane_point_f32(name):
     """Float32: the exact rational plane intersection lies inside the hit box widened by
     4 float32 ulps per coordinate (ulp of max(|lo|, |hi|), the kernel's mantissa measure)."""
@@ -156,14 +150,19 @@ def test_flat_patch_box_near_plane_point_f32(name):
 
 @pytest.mark.parametrize("name", list(FLAT))
 def test_flat_patch_box_contains_plane_point_f64(name):
-    """Float64: within 32 float64 ulps of the ray's scale (|origin| + t |d|): the slab test runs
-    relative to the ray origin, so that is its resolution."""
+    """Float64: boxes are a few tens of float64 ulps of the patch wide at most, and the exact point is within
+    box width / cos(angle to the normal) of the box (the ray may cross the box that far from the
+    plane) plus 16 ulps of the ray's scale |origin| + t |d| (the slab test's resolution)."""
     r = flat_rays(name, "f64")
     inner = _inner(r)
     lo, hi, p = r["lo"][inner], r["hi"][inner], r["point"][inner]
+    width = (hi - lo).max(axis=1)
+    size_ulp = ref.ulp(r["local_size"], 53) + ref.ulp(np.abs(p).max(axis=1), 53)  # local, and world rounding
+    assert np.all(width <= 64 * size_ulp), f"widest {np.max(width / size_ulp):.1f} ulps"
     out = np.maximum(np.maximum(lo - p, p - hi), 0.0).max(axis=1)
     scale = np.abs(r["origin"][inner]).max(axis=1) + r["t"][inner] * np.linalg.norm(r["dir"][inner], axis=1)
-    assert np.all(out <= 32 * ref.ulp(scale, 53)), f"worst {np.max(out / ref.ulp(scale, 53)):.1f} ulps"
+    allowed = width / r["cos"][inner] + 16 * ref.ulp(scale, 53)
+    assert np.all(out <= allowed), f"worst {np.max(out / allowed):.2f} x allowed"
 
 
 @pytest.mark.parametrize("name", list(FLAT))
@@ -362,8 +361,9 @@ def test_mantissa_criterion_box_within_ulps(ulps):
     assert hits.sum() > 300
     ok = within_ulps(frame, ulps)
     assert np.all(ok[hits]), f"{np.sum(~ok & hits)} boxes wider than {ulps} ulps"
-    if ulps >= 64:
-        assert not np.all(within_ulps(frame, ulps / 8)[hits])  # it stopped early
+    if ulps >= 64:  # it stopped early: boxes clearly larger than the float criterion's
+        _, flt = teapot_render(Options(criterion="float"), offset=offset)
+        assert np.median(l1(frame)[hits]) > 4 * np.median(l1(flt)[flt.hit])
     refr = reference_frame(scene, frame)
     assert not np.any(refr.hit & ~frame.hit)
 
@@ -439,7 +439,8 @@ def halves(step):
 
 @pytest.mark.parametrize("opts", TRACE_OPTS, ids=lambda o: f"{o.criterion}-{o.split}-{o.precision}")
 def test_trace_events_are_consistent(opts):
-    """trace_one: every step is miss/pruned/split/hit; the reported box is the last hit step's;
+    """trace_one: every step is miss/pruned/split/hit; the reported box is a hit step's box, the
+    nearest of them along the ray (the last hit, since only nearer hits replace the current one);
     effort counts the steps; depths and parameter intervals nest; and it agrees with render."""
     scene = S.teapot()
     size = (24, 24)
@@ -470,15 +471,19 @@ def test_trace_events_are_consistent(opts):
                 assert any(tuple(f[k, :4]) in halves(f[q]) for q in parents), (x, y, k)
         if tr.hit:
             hits += 1
-            k = tr.hit_step()
-            assert events[k] == "hit"
+            k = tr.hit_step()  # the reported step: not always the last 'hit' in list order, since a
+            assert events[k] == "hit"  # box computed early (an ancestor's far half) may be hit last
             assert np.array_equal(tr.box_min, f[k, 4:7]) and np.array_equal(tr.box_max, f[k, 7:10])
             assert tr.patch == i[k, 0]
             assert np.array_equal(tr.box_min, frame.box_min[y, x])
             assert np.array_equal(tr.box_max, frame.box_max[y, x])
             assert tr.effort == frame.effort[y, x]
-            # everything recorded after the reported hit is further away or missed
-            assert "hit" not in events[k + 1:]
+            o, d = frame.ray_origin[y, x], frame.ray_dir[y, x]
+            entry = {q: float(ref.slab_exact(f[q, 4:10], o, d)[1] or math.inf) for q in np.nonzero(i[:, 2] == 3)[0]}
+            # hits are ordered by the entry of the box the kernel tests, which the reported (grid,
+            # widened) box contains: equal up to the box's size along the ray
+            slack = f[k, 10] / np.linalg.norm(d) + 1e-12
+            assert entry[k] <= min(entry.values()) + slack, (x, y, entry)
         else:
             assert "hit" not in events and tr.hit_step() == -1
     assert 10 < hits < len(pixels)
