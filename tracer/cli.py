@@ -59,6 +59,10 @@ def add_option_flags(parser, exclude=()):
         group = groups.get(meta["group"]) or groups.setdefault(
             meta["group"], parser.add_argument_group(f"{meta['group'].lower()} options"))
         extra = f"; range {meta['lo']}..{meta['hi']}" if meta["lo"] is not None else ""
+        if isinstance(f.default, bool):  # --trims / --no-trims
+            group.add_argument(option_flag(f), dest=f"opt_{f.name}", action=argparse.BooleanOptionalAction,
+                               default=None, help=f"{meta['help']} (default: {'on' if f.default else 'off'})")
+            continue
         group.add_argument(option_flag(f), dest=f"opt_{f.name}", type=type(f.default), default=None,
                            choices=meta["choices"], metavar=None if meta["choices"] else f.name.upper(),
                            help=f"{meta['help']} (default: {f.default}{extra})")

@@ -33,6 +33,20 @@ class Geometry:
     eps: np.ndarray       # (n_patches, 3) float64 bound on |stored surface - true surface| per axis
     patch_box: np.ndarray # (n_patches, 6) float64 tight world boxes (one quad split, padded)
     bvh: Bvh
+    patch_domain: np.ndarray  # (n_patches, 4) float64 u0 u1 v0 v1: the patch in its surface's parameters
+    patch_trim: np.ndarray    # (n_patches,) int32 surface whose trimming loops apply, -1: none
+    trim_arrays: tuple        # seg_points, seg_start, surf_seg_start, start_inside (trim_kernel)
+
+    def trims_for(self, use_trims: bool) -> tuple:
+        """The kernel's trim tuple; with use_trims False no patch is trimmed."""
+        patch_trim = self.patch_trim if use_trims else np.full_like(self.patch_trim, -1)
+        return (patch_trim, self.patch_domain) + self.trim_arrays
+
+    @property
+    def trim_points(self) -> int:
+        """Largest number of control points of a trimming segment (for scratch sizes)."""
+        starts = self.trim_arrays[1]
+        return int(np.max(np.diff(starts))) if len(starts) > 1 else 2
 
     @property
     def n_patches(self) -> int:
@@ -115,9 +129,25 @@ def prepare(scene, precision: str = "f32") -> Geometry:
         pad = eps[p] + magnitude * 2.0 ** (9 - bits) + np.finfo(np.float64).tiny
         boxes[p, :3] = box[:3] - pad + frame[p]
         boxes[p, 3:] = box[3:] + pad + frame[p]
+    patch_trim, trim_arrays = _trim_arrays(scene)
     return Geometry(precision, ctrl, start, np.asarray(scene.degree_u, np.int32),
                     np.asarray(scene.degree_v, np.int32), np.asarray(scene.rational, np.int8),
-                    frame, eps, boxes, build_bvh(boxes))
+                    frame, eps, boxes, build_bvh(boxes),
+                    np.ascontiguousarray(scene.patch_domain, np.float64), patch_trim, trim_arrays)
+
+
+def _trim_arrays(scene):
+    """Per-patch trimmed surface (-1 where there is nothing to test) and the flat loop arrays."""
+    trims = getattr(scene, "trims", None)
+    surface = np.asarray(scene.patch_surface, np.int32)
+    if trims is None or trims.n_surfaces == 0:
+        empty = (np.zeros((0, 3)), np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(0, np.int8))
+        return np.full(scene.n_patches, -1, np.int32), empty
+    has = np.asarray(trims.has_trim, bool)
+    patch_trim = np.where((surface >= 0) & has[np.maximum(surface, 0)], surface, -1).astype(np.int32)
+    arrays = (np.ascontiguousarray(trims.seg_points, np.float64), np.asarray(trims.seg_start, np.int64),
+              np.asarray(trims.surf_seg_start, np.int64), np.asarray(trims.start_inside, np.int8))
+    return patch_trim, arrays
 
 
 def _rounding_bounds(local, weight, stored, patch_of_point, n, bits):

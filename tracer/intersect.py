@@ -38,6 +38,7 @@ import math
 from numba import njit
 
 from .bezier import control_box, control_box_rational, split_u, split_u_cubic, split_v, split_v_cubic
+from .trim_kernel import trim_inside
 from .ray import (H_DEPTH, H_DU, H_DV, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, R_D, R_DT, R_N1,
                   R_N2, R_O, R_T0, slab)
 
@@ -55,7 +56,8 @@ M_DPAR = 7                            # the parent's criterion diameter
 M_OX = 8                              # 8, 9, 10: offset, patch frame = local + offset
 M_MAG = 11                            # largest |local coordinate| of the box
 M_GULP = 12                           # working-grid ulp at the box's frame magnitude (a bound)
-MF_LEN = 13
+M_W = 13                              # L1 size of the widening (error bounds) in M_D
+MF_LEN = 14
 # Trace record columns (float64): u0 u1 v0 v1 lo xyz hi xyz diameter; (int32): patch depth event.
 TRACE_F, TRACE_I = 11, 3
 
@@ -113,10 +115,13 @@ def _widen(box, mf, s, eps, p, sub_scale):
         mag = max(mag, abs(box[s, k]))
     mf[s, M_MAG] = mag
     sub = mag * sub_scale
+    widening = 0.0
     for c in range(3):
         e = eps[p, c] + sub
         box[s, c] -= e
         box[s, 3 + c] += e
+        widening += 2.0 * e
+    mf[s, M_W] = widening
     mf[s, M_D] = (box[s, 3] - box[s, 0]) + (box[s, 4] - box[s, 1]) + (box[s, 5] - box[s, 2])
 
 
@@ -158,6 +163,10 @@ def _recentre(buf, box, mf, s, count, is_rational, f32, eps, p, bits, sub_scale)
     working precision: for points close to the shift the subtraction is exact, Sterbenz)."""
     for c in range(3):
         shift = _to_working(0.5 * (box[s, c] + box[s, 3 + c]), bits, f32)
+        offset = mf[s, M_OX + c]
+        if offset != 0.0:  # a multiple of the offset's float64 ulp: offset + shift stays exact
+            q = math.ldexp(1.0, math.frexp(offset)[1] - 53)
+            shift = math.floor(shift / q + 0.5) * q
         if is_rational:
             for k in range(count):  # w x - shift w, with one rounding
                 buf[s, c, k] = float(buf[s, c, k]) - shift * float(buf[s, 3, k])
@@ -302,7 +311,7 @@ def _report(hit, box, mf, a, p, depth, bits, f32, i32, frame):
 @njit(cache=True, nogil=True)
 def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ray, hit,
                  criterion, param, split_mode, max_depth, bits,
-                 buf, box, mf, mi, order, f32, i32, lray, trace):
+                 buf, box, mf, mi, order, f32, i32, lray, trims, trim_h, trim_m, trace):
     """Closest intersection of `ray` with patch p beyond t_min and before hit[H_TIN].
 
     Updates `hit` when a closer hit box is found; returns the number of boxes computed.
@@ -312,7 +321,9 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ray, hit,
     criterion/param: FLOAT (-), FIXED (L1 size), ADAPTIVE (uses the ray's T0, dT),
     MANTISSA (ulps); every criterion also stops when the box stops shrinking.
     bits: mantissa bits of the working dtype (24 or 53). lray: scratch ray record (the ray in
-    the patch's frame). trace: None or (tf, ti, tn).
+    the patch's frame). trims: (patch_trim, patch_domain, seg_points, seg_start, surf_seg_start,
+    start_inside) with scratch trim_h, trim_m (see trim_kernel): a hit box whose parameter
+    centre lies outside the kept region is no hit. trace: None or (tf, ti, tn).
     """
     m = deg_u[p]
     n = deg_v[p]
@@ -341,6 +352,7 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ray, hit,
     mi[s, 1] = 0
     mi[s, 2] = -1
     sub_scale = math.ldexp(1.0, SUB_ERR_BITS - bits)
+    shrink_factor = 1.0 - math.ldexp(1.0, 4 - bits)  # a real decrease: more than 16 ulps
     _raw_box(buf, box, s, count, is_rational)
     _widen(box, mf, s, eps, p, sub_scale)
     frame_mag = 0.0
@@ -373,11 +385,24 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ray, hit,
         elif criterion == MANTISSA:
             stop = stop or _within_ulps(box, mf, a, param, bits, f32, i32)
         # Float precision: the box did not shrink, even after halving the other direction too.
-        shrank = d_crit < mf[a, M_DPAR]
+        # "Shrink" means by more than rounding noise: in float64 (its own grid) the widened box
+        # otherwise keeps losing last bits forever. An interval that can no longer halve is spent.
+        # A box that is mostly error bound cannot get meaningfully smaller either.
+        shrank = d_crit < mf[a, M_DPAR] * shrink_factor and d > 1.0625 * mf[a, M_W]
+        if (mf[a, M_U0] == mf[a, M_U1]) or (mf[a, M_V0] == mf[a, M_V1]):
+            stop = True  # the parameter interval cannot be halved any more
         if not shrank and mi[a, 1] == 1:
             stop = True
         if stop:
-            found = _hull_hit(buf, a, count, is_rational, mf, ray, eps, p, sub_scale)
+            # At the depth cap the precision is spent: accept rather than reject (a rejection
+            # there would send the search through every branch down to the cap).
+            found = depth >= max_depth or _hull_hit(buf, a, count, is_rational, mf, ray, eps, p, sub_scale)
+            surface = trims[0][p]
+            if found and surface >= 0:
+                dom = trims[1]
+                u = dom[p, 0] + 0.5 * (mf[a, M_U0] + mf[a, M_U1]) * (dom[p, 1] - dom[p, 0])
+                v = dom[p, 2] + 0.5 * (mf[a, M_V0] + mf[a, M_V1]) * (dom[p, 3] - dom[p, 2])
+                found = trim_inside(surface, u, v, trims[2], trims[3], trims[4], trims[5], trim_h, trim_m)
             if trace is not None:
                 _set_event(trace, mi[a, 3], HIT if found else MISS)
             if found:

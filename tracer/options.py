@@ -19,8 +19,9 @@ CRITERION_CODE = {name: i for i, name in enumerate(CRITERIA)}
 SPLIT_CODE = {name: i for i, name in enumerate(SPLITS)}
 
 
-def _opt(default, help, *, choices=None, lo=None, hi=None, log=False, group="Tracer", cli=None):
-    meta = {"help": help, "choices": choices, "lo": lo, "hi": hi, "log": log, "group": group, "cli": cli}
+def _opt(default, help, *, choices=None, lo=None, hi=None, log=False, group="Tracer", cli=None, when=None):
+    meta = {"help": help, "choices": choices, "lo": lo, "hi": hi, "log": log, "group": group, "cli": cli,
+            "when": when}
     return field(default=default, metadata=meta)
 
 
@@ -30,14 +31,17 @@ class Options:
 
     criterion: str = _opt("float", "termination criterion of the subdivision", choices=CRITERIA)
     fixed_size: float = _opt(1e-3, "fixed: stop when the box's L1 diameter is at most this (world units)",
-                             lo=1e-9, hi=10.0, log=True)
+                             lo=1e-9, hi=10.0, log=True, when={"criterion": "fixed"})
     pixel_fraction: float = _opt(0.5, "adaptive: stop when the box's L1 diameter is at most this fraction "
-                                 "of the pixel footprint at its distance", lo=0.01, hi=8.0, log=True)
-    mantissa_ulps: int = _opt(64, "mantissa: stop when box corners lie within this many ulps per coordinate",
-                              lo=0, hi=1 << 20, log=True)
+                                 "of the pixel footprint at its distance", lo=0.01, hi=8.0, log=True,
+                                 when={"criterion": "adaptive"})
+    mantissa_ulps: int = _opt(64, "mantissa: stop when box corners lie within this many ulps per coordinate "
+                              "(of the patch-frame coordinates the arithmetic uses)",
+                              lo=0, hi=1 << 20, log=True, when={"criterion": "mantissa"})
     split: str = _opt("length", "split heuristic: longer parameter direction, or cross product with the ray",
                       choices=SPLITS)
     precision: str = _opt("f32", "working precision of the subdivision", choices=PRECISIONS)
+    trims: bool = _opt(True, "apply trimming curves (off: show trimmed surfaces whole)")
     mode: str = _opt("shaded", "what the image shows", choices=MODES, group="Display")
     tile_size: int = _opt(32, "tile edge in pixels (tiles render in parallel)", lo=4, hi=256, group="Render")
     threads: int = _opt(0, "render threads (0: one per core)", lo=0, hi=256, group="Render")
@@ -71,7 +75,17 @@ def parse_assignment(opts: Options, text: str) -> Options:
         raise ValueError(f"unknown option {name!r} (known: {', '.join(by_name)})")
     kind = type(getattr(Options(), name))
     try:
-        value = kind(float(raw)) if kind in (int, float) else kind(raw)
+        value = parse_bool(raw) if kind is bool else kind(float(raw)) if kind in (int, float) else kind(raw)
     except ValueError:
         raise ValueError(f"option {name}: cannot read {raw!r} as {kind.__name__}") from None
     return replace(opts, **{name: value})
+
+
+def parse_bool(raw: str) -> bool:
+    """true/false, on/off, yes/no, 1/0."""
+    word = raw.strip().lower()
+    if word in ("true", "on", "yes", "1"):
+        return True
+    if word in ("false", "off", "no", "0"):
+        return False
+    raise ValueError(f"cannot read {raw!r} as a boolean (true/false)")

@@ -14,17 +14,20 @@ from numba import njit
 from .intersect import MF_LEN
 from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN, make_ray
 from .traverse import hit_normal, trace_ray
+from .trim_kernel import MAX_SPLIT_DEPTH
 
 
 @njit(cache=True, nogil=True)
 def render_tile(y0, y1, x0, x1, origins, dirs,
                 ctrl, pstart, deg_u, deg_v, rational, frame, eps, node_box, node_child, node_patch,
                 criterion, param, split_mode, max_depth, bits, detail_slope, max_points, stack_nodes,
+                trims, trim_points,
                 out_hit, out_t, out_pos, out_lo, out_hi, out_normal, out_uv, out_patch, out_effort):
     """Trace pixels [y0, y1) x [x0, x1). origins/dirs: (H, W, 3) float64 rays as traced.
 
     detail_slope: threshold of detail per unit distance (adaptive criterion; 0 otherwise).
-    Outputs follow the per-pixel contract (see render.Frame).
+    trims: the trim tuple (geometry.Geometry.trims_for). Outputs follow the per-pixel contract
+    (see render.Frame); uv is in the parameters of the patch's surface (NURBS), else of the patch.
     """
     slots = max_depth + 2
     buf = np.zeros((slots, 4, max_points), ctrl.dtype)
@@ -35,6 +38,9 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
     f32 = np.zeros(1, np.float32)
     i32 = f32.view(np.int32)
     lray = np.zeros(RAY_LEN)
+    trim_h = np.zeros((MAX_SPLIT_DEPTH + 4, trim_points, 3))
+    trim_m = np.zeros((MAX_SPLIT_DEPTH + 4, 6))
+    domain = trims[1]
     node_stack = np.zeros(stack_nodes, np.int32)
     node_tin = np.zeros(stack_nodes)
     ray = np.zeros(RAY_LEN)
@@ -55,7 +61,8 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
             out_effort[y, x] = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, eps,
                                          node_box, node_child, node_patch,
                                          criterion, param, split_mode, max_depth, bits,
-                                         buf, box, mf, mi, order, f32, i32, lray, node_stack, node_tin, None)
+                                         buf, box, mf, mi, order, f32, i32, lray, trims, trim_h, trim_m,
+                                         node_stack, node_tin, None)
             if hit[H_TIN] == math.inf:
                 out_hit[y, x] = False
                 out_t[y, x] = math.inf
@@ -81,8 +88,9 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
                 along += (centre - ray[c]) * ray[3 + c]
             # t of the ray point nearest the box centre, kept inside the box's slab interval.
             out_t[y, x] = min(max(along / (length * length), hit[H_TIN]), hit[H_TOUT])
-            out_uv[y, x, 0] = hit[H_U]
-            out_uv[y, x, 1] = hit[H_V]
+            p = int(hit[H_PATCH])
+            out_uv[y, x, 0] = domain[p, 0] + hit[H_U] * (domain[p, 1] - domain[p, 0])
+            out_uv[y, x, 1] = domain[p, 2] + hit[H_V] * (domain[p, 3] - domain[p, 2])
             hit_normal(hit, ctrl, pstart, deg_u, deg_v, rational, ray, pts, scratch, work, normal)
             for c in range(3):
                 out_normal[y, x, c] = normal[c]

@@ -15,6 +15,7 @@ from .geometry import Geometry, prepare
 from .intersect import EVENT_NAMES, TRACE_F, TRACE_I
 from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN, make_ray
 from .traverse import hit_normal, scratch_for, trace_ray
+from .trim_kernel import trim_scratch
 from .options import Options
 from .render import kernel_args
 
@@ -83,7 +84,7 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
                     pixel=(0, 0), capacity: int = TRACE_CAPACITY) -> PixelTrace:
     """Trace one ray with step recording; same kernel and options as the renderer."""
     (ctrl, pstart, deg_u, deg_v, rational, frame, eps, node_box, node_child, node_patch, criterion, param, split_mode,
-     max_depth, bits, slope, max_points, stack_nodes) = kernel_args(geom, opts, pixel_angle)
+     max_depth, bits, slope, max_points, stack_nodes, trims, trim_points) = kernel_args(geom, opts, pixel_angle)
     buf, box, mf, mi, order, f32, i32, lray = scratch_for(max_points, max_depth, ctrl.dtype)
     node_stack = np.zeros(max(stack_nodes, 128), np.int32)
     node_tin = np.zeros(len(node_stack))
@@ -98,7 +99,8 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
     hit[H_TIN] = math.inf
     effort = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, eps,
                        node_box, node_child, node_patch, criterion, param, split_mode, max_depth, bits,
-                       buf, box, mf, mi, order, f32, i32, lray, node_stack, node_tin, trace)
+                       buf, box, mf, mi, order, f32, i32, lray, trims, *trim_scratch(trim_points),
+                       node_stack, node_tin, trace)
     k = int(trace[2][0])
     found = hit[H_TIN] < math.inf
     lo = hit[H_LO:H_LO + 3].copy()
@@ -111,8 +113,12 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
         hit_normal(hit, ctrl, pstart, deg_u, deg_v, rational, ray, pts, np.zeros((4, max_points)),
                    np.zeros((6, 4)), normal)
         t = min(max(float((centre - o) @ d) / (length * length), hit[H_TIN]), hit[H_TOUT])
+    uv = np.array([hit[H_U], hit[H_V]])
+    if found:  # in the parameters of the patch's surface (NURBS), as the renderer reports them
+        dom = geom.patch_domain[int(hit[H_PATCH])]
+        uv = np.array([dom[0] + uv[0] * (dom[1] - dom[0]), dom[2] + uv[1] * (dom[3] - dom[2])])
     return PixelTrace(tuple(pixel), found, int(hit[H_PATCH]) if found else -1, t, centre, lo, hi, normal,
-                      np.array([hit[H_U], hit[H_V]]), int(effort), trace[0][:k].copy(), trace[1][:k].copy(),
+                      uv, int(effort), trace[0][:k].copy(), trace[1][:k].copy(),
                       bool(trace[2][1]), int(trace[2][2]))
 
 

@@ -15,7 +15,8 @@ from .ray import H_PATCH, H_TIN, H_U, H_V, R_D, RAY_LEN, slab
 def trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, eps,
               node_box, node_child, node_patch,
               criterion, param, split_mode, max_depth, bits,
-              buf, box, mf, mi, order, f32, i32, lray, node_stack, node_tin, trace):
+              buf, box, mf, mi, order, f32, i32, lray, trims, trim_h, trim_m,
+              node_stack, node_tin, trace):
     """Closest hit of one ray: BVH traversal, near child first, sharing the shrinking ray
     interval with the patch searches. Returns the total effort (patch boxes computed).
 
@@ -38,7 +39,7 @@ def trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, eps,
         if left < 0:
             effort += search_patch(node_patch[node], ctrl, pstart, deg_u, deg_v, rational, frame, eps,
                                    ray, hit, criterion, param, split_mode, max_depth, bits,
-                                   buf, box, mf, mi, order, f32, i32, lray, trace)
+                                   buf, box, mf, mi, order, f32, i32, lray, trims, trim_h, trim_m, trace)
             continue
         right = node_child[node, 1]
         ok_l, tl, _ = slab(node_box[left], 0.0, 0.0, 0.0, ray)

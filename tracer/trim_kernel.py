@@ -1,0 +1,101 @@
+"""Trimming in the kernel: is a surface parameter point in the kept region?
+
+Ray parity against the surface's loops of (rational) Bezier segments, with
+curve subdivision where the answer is not yet clear (Dammertz 2.6): a piece
+left of the point, wholly above or wholly below it crosses nothing; a piece
+wholly right of it crosses the ray as often as its ends lie on different sides;
+otherwise it is halved, until its box stops shrinking. This mirrors the
+reference `tracer.trim.segment_parity` step for step, in float64.
+
+Trim arrays (tracer.trim.TrimSet): seg_points (S, 3) u v w (Euclidean + weight),
+seg_start (n_segs + 1,), surf_seg_start (n_surfaces + 1,), start_inside (n_surfaces,) int8.
+Scratch: stack_h (D, P, 3) homogeneous pieces, stack_m (D, 6) per piece: end a (u, v),
+end b (u, v), parent diameter, depth; D >= MAX_SPLIT_DEPTH + 2, P >= max segment points.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+MAX_SPLIT_DEPTH = 96  # as tracer.trim: float64 boxes stop shrinking long before this
+
+
+@njit(cache=True, nogil=True)
+def _segment_parity(seg_points, first, last, u, v, stack_h, stack_m):
+    """0 or 1: parity of the crossings of the ray from (u, v) towards +u with one segment."""
+    n = last - first
+    for k in range(n):
+        w = seg_points[first + k, 2]
+        stack_h[0, k, 0] = seg_points[first + k, 0] * w
+        stack_h[0, k, 1] = seg_points[first + k, 1] * w
+        stack_h[0, k, 2] = w
+    stack_m[0, 0] = seg_points[first, 0]  # the ends exactly as stored (shared by neighbours)
+    stack_m[0, 1] = seg_points[first, 1]
+    stack_m[0, 2] = seg_points[last - 1, 0]
+    stack_m[0, 3] = seg_points[last - 1, 1]
+    stack_m[0, 4] = math.inf
+    stack_m[0, 5] = 0.0
+    odd = 0
+    top = 1
+    while top > 0:
+        top -= 1
+        au, av, bu, bv = stack_m[top, 0], stack_m[top, 1], stack_m[top, 2], stack_m[top, 3]
+        umin = min(au, bu)
+        umax = max(au, bu)
+        vmin = min(av, bv)
+        vmax = max(av, bv)
+        for k in range(1, n - 1):
+            pu = stack_h[top, k, 0] / stack_h[top, k, 2]
+            pv = stack_h[top, k, 1] / stack_h[top, k, 2]
+            umin = min(umin, pu)
+            umax = max(umax, pu)
+            vmin = min(vmin, pv)
+            vmax = max(vmax, pv)
+        if umax < u or vmin >= v or vmax < v:  # left of the point, wholly above, wholly below
+            continue
+        flip = 1 if (av >= v) != (bv >= v) else 0
+        diam = (umax - umin) + (vmax - vmin)
+        if umin > u or diam >= stack_m[top, 4] or stack_m[top, 5] >= MAX_SPLIT_DEPTH:
+            odd ^= flip  # wholly right of the point, or the precision is spent
+            continue
+        # Halve at 1/2: the left piece stays in `top`, the right one goes to `top + 1`.
+        right = top + 1
+        for c in range(3):
+            stack_h[right, n - 1, c] = stack_h[top, n - 1, c]
+        for k in range(1, n):
+            for i in range(n - 1, k - 1, -1):
+                for c in range(3):
+                    stack_h[top, i, c] = 0.5 * stack_h[top, i - 1, c] + 0.5 * stack_h[top, i, c]
+            for c in range(3):
+                stack_h[right, n - 1 - k, c] = stack_h[top, n - 1, c]
+        mu = stack_h[top, n - 1, 0] / stack_h[top, n - 1, 2]
+        mv = stack_h[top, n - 1, 1] / stack_h[top, n - 1, 2]
+        depth = stack_m[top, 5] + 1.0
+        stack_m[right, 0] = mu
+        stack_m[right, 1] = mv
+        stack_m[right, 2] = bu
+        stack_m[right, 3] = bv
+        stack_m[right, 4] = diam
+        stack_m[right, 5] = depth
+        stack_m[top, 2] = mu
+        stack_m[top, 3] = mv
+        stack_m[top, 4] = diam
+        stack_m[top, 5] = depth
+        top += 2
+    return odd
+
+
+@njit(cache=True, nogil=True)
+def trim_inside(surface, u, v, seg_points, seg_start, surf_seg_start, start_inside, stack_h, stack_m):
+    """Is (u, v) (surface parameters) in the kept region of `surface`'s trimming loops?"""
+    odd = int(start_inside[surface])
+    for s in range(surf_seg_start[surface], surf_seg_start[surface + 1]):
+        odd ^= _segment_parity(seg_points, seg_start[s], seg_start[s + 1], u, v, stack_h, stack_m)
+    return odd != 0
+
+
+def trim_scratch(max_points: int):
+    """Scratch for trim_inside."""
+    return np.zeros((MAX_SPLIT_DEPTH + 4, max(max_points, 2), 3)), np.zeros((MAX_SPLIT_DEPTH + 4, 6))
