@@ -510,13 +510,7 @@ def test_trace_events_are_consistent(opts):
 KNOB_RAY = ((0.55, -0.8, 3.75), (-0.21259009004896104, 0.7230676952310235, -0.7085409452357097))
 
 
-@pytest.mark.parametrize("precision", [
-    pytest.param("f64", marks=pytest.mark.xfail(strict=True, reason=(
-        "kernel 027fb4a: 165,444,423 boxes (12 s) for this ray, 389 at a728392. Below depth ~108 the "
-        "(u, v) intervals have zero width and the box L1 sits at 4.0967e-15 changing only in its last bits, "
-        "so the 'did not shrink' stall never fires; every box reaches max depth 138, where the hull test "
-        "rejects it (miss), so no hit prunes and both halves are searched to the bottom"))),
-    "f32"])
+@pytest.mark.parametrize("precision", ["f64", "f32"])
 def test_effort_bounded_on_the_lid_knob(precision):
     """One ray at the lid knob: the search finds the hit with a sane number of boxes."""
     origin, direction = KNOB_RAY
