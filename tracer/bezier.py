@@ -153,18 +153,20 @@ def control_box(buf, slot, count, box):
 def control_box_rational(buf, slot, count, box):
     """Box of the homogenised control points (x/w, y/w, z/w) of a rational patch in `slot`.
 
-    Quotients are formed in float64 (one rounding, within the widening the search applies to
-    every box); with positive weights the sub-patch lies in the hull of these points.
+    Quotients are formed in float64 (one rounding, at most half an ulp) and each bound is moved
+    outward by |bound| * 2^-52 (at least one ulp after its own rounding), so the box contains every
+    exact quotient of the stored points; numba has no rounding modes to do it with. With positive
+    weights the sub-patch lies in the hull of these points.
     """
     for c in range(3):
         lo = math.inf
         hi = -math.inf
         for k in range(count):
-            q = float(buf[slot, c, k]) / float(buf[slot, 3, k])
+            q = np.float64(buf[slot, c, k]) / np.float64(buf[slot, 3, k])  # numba: float(float32) stays float32
             lo = min(lo, q)
             hi = max(hi, q)
-        box[slot, c] = lo
-        box[slot, 3 + c] = hi
+        box[slot, c] = lo - abs(lo) * 2.220446049250313e-16
+        box[slot, 3 + c] = hi + abs(hi) * 2.220446049250313e-16
 
 
 @njit(cache=True, nogil=True)

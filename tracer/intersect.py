@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from .bezier import control_box, control_box_rational, split_u, split_u_cubic, split_v, split_v_cubic
@@ -213,8 +214,8 @@ def _hull_hit(buf, s, count, is_rational, mf, ray, eps, p, sub_scale):
 def _corner(buf, s, k, c, rational):
     """Coordinate c of control point k in slot s, homogenised for rational patches."""
     if rational:
-        return float(buf[s, c, k]) / float(buf[s, 3, k])
-    return float(buf[s, c, k])
+        return np.float64(buf[s, c, k]) / np.float64(buf[s, 3, k])  # numba: float(float32) stays float32
+    return np.float64(buf[s, c, k])
 
 
 @njit(cache=True, nogil=True, inline='always')
