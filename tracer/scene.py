@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tracer.errors import SceneError
+from tracer.errors import SceneError, read_text
 from tracer.formats.bpt import MAX_DEGREE, PatchData, load_bpt
 from tracer.formats.obj import load_obj
 from tracer.nurbs import FreeformModel, SurfaceInfo
@@ -160,13 +160,7 @@ def load_scene(path) -> Scene:
     if ext != ".json":
         raise SceneError(f"unsupported scene file type '{ext}' (supported: .json, "
                          f"{', '.join(_FILE_TYPES)})", path=label)
-    try:
-        with open(path, encoding="utf-8-sig") as f:
-            text = f.read()
-    except FileNotFoundError:
-        raise SceneError("file not found", path=label) from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise SceneError(f"cannot read file: {e}", path=label) from None
+    text = read_text(path)
     try:
         data = json.loads(text, object_pairs_hook=_no_duplicates)
     except SceneError as e:

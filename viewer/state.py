@@ -16,6 +16,7 @@ import numpy as np
 
 from tracer.camera import View
 from tracer.options import Options, option_fields, parse_assignment
+from tracer.options import parse_bool  # one reading of booleans for the CLI and the viewer
 
 DEFAULT_CHANNEL = "default"
 
@@ -68,13 +69,6 @@ class ViewSettings:
                 raise ValueError(f"setting {f.name}: {v!r} is outside [{m['lo']}, {m['hi']}]")
 
 
-def parse_bool(raw: str) -> bool:
-    low = raw.strip().lower()
-    if low in ("1", "true", "yes", "on"):
-        return True
-    if low in ("0", "false", "no", "off"):
-        return False
-    raise ValueError(f"cannot read {raw!r} as a boolean (true/false)")
 
 
 def assign(opts: Options, settings: ViewSettings, text: str):

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tracer.errors import SceneError
+from tracer.errors import SceneError, read_text
 
 MAX_DEGREE = 20
 
@@ -35,13 +35,7 @@ class PatchData:
 def load_bpt(path) -> list[PatchData]:
     """Read and parse a `.bpt` file; every failure is a SceneError."""
     label = str(path)
-    try:
-        with open(path, encoding="utf-8-sig") as f:
-            text = f.read()
-    except FileNotFoundError:
-        raise SceneError("file not found", path=label) from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise SceneError(f"cannot read file: {e}", path=label) from None
+    text = read_text(path)
     return parse_bpt(text, label)
 
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from tracer.errors import SceneError
+from tracer.errors import SceneError, read_text
 from tracer.nurbs import (MAX_DEGREE, FreeformModel, FreeformSurface, NurbsCurve, NurbsError,
                           NurbsSurface, SurfaceInfo, bezier_knots)
 from tracer.trim import TrimError, curve_segments, make_loop
@@ -52,13 +52,7 @@ class _Element:
 def load_obj(path) -> FreeformModel:
     """Read and parse an OBJ free-form file; every failure is a SceneError."""
     label = str(path)
-    try:
-        with open(path, encoding="utf-8-sig") as f:
-            text = f.read()
-    except FileNotFoundError:
-        raise SceneError("file not found", path=label) from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise SceneError(f"cannot read file: {e}", path=label) from None
+    text = read_text(path)
     return parse_obj(text, label)
 
 
