@@ -15,8 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from tracer.camera import View
-from tracer.options import Options, option_fields, parse_assignment
-from tracer.options import parse_bool  # one reading of booleans for the CLI and the viewer
+from tracer.options import Options, option_fields, parse_assignment, parse_bool
 
 DEFAULT_CHANNEL = "default"
 
