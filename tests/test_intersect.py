@@ -197,7 +197,7 @@ def test_rays_at_known_points_hit_no_farther(case, precision):
     the box size; a clearly nearer hit must be a real intersection (checked with the reference)."""
     name, P = known_point_patches()[case]
     scene = S.patches_scene([P])
-    geom = prepare(scene, precision)
+    geom = prepare(scene, precision, presplit=0)  # one leaf: the patch exactly as stored
     Ps = ref.grid(geom.patch_points(0), P.shape[0] - 1, P.shape[1] - 1)
     rng = np.random.default_rng(100 + case)
     count = 120
@@ -474,9 +474,12 @@ def test_trace_events_are_consistent(opts):
         np.testing.assert_allclose(f[:, 10], (f[:, 7:10] - f[:, 4:7]).sum(axis=1), rtol=1e-12,
                                    atol=8 * ref.ulp(np.abs(f[:, 4:10]).max(initial=0.0), BITS[opts.precision]))
         children = {}  # (patch, depth, interval) of a possible child -> earliest split step
+        root = 2 * geom.presplit  # scene patches are pre-split 4^presplit ways into leaves
+        cell = 0.5 ** geom.presplit
         for k in range(len(events)):
-            if i[k, 1] == 0:  # a patch's root box covers its whole parameter square
-                assert tuple(f[k, :4]) == (0.0, 1.0, 0.0, 1.0)
+            if i[k, 1] == root:  # a leaf's root box covers its cell of the patch's parameter square
+                u0, u1, v0, v1 = f[k, :4]
+                assert u1 - u0 == cell and v1 - v0 == cell and (u0 / cell) % 1 == 0 and (v0 / cell) % 1 == 0
             else:  # a child: one half, in u or v, of an earlier split step one level up
                 # (midpoints rounded as the kernel rounds them: near a collapsed edge float64
                 # intervals can shrink below the resolution of u itself)

@@ -25,14 +25,9 @@ _INSIDE = ("kernel: the float32 hit box is a few world ulps wide (median 0.5-6.5
            "crosses it up to diameter/cos(angle to the normal) away from the true intersection -- every "
            "reference point lies within that distance of its box -- so a 4-ulp widening misses it; meeting "
            "the target needs boxes below a world ulp or a final placement of the point on the ray")
-_LOOP_FLOOR = ("kernel 027fb4a: the conservative widening makes the boxes here ~3.6x larger than at a728392 "
-               "(median L1 6.4e-7 vs 1.8e-7) and the mean error 1.8x larger (ratio 5.66 -> 10.06), just over "
-               "the 10x target; pixels with cos > 0.1 alone give 8.5x")
-
 # (scene, check) -> why it fails today: strict xfails, measured against kernel 027fb4a.
 # A kernel change that fixes one turns it into an XPASS failure: then delete the entry.
-KNOWN = {(name, "inside"): _INSIDE for name in CASES if name != "teapot +1e4"}
-KNOWN[("self-intersecting loop a", "floor")] = _LOOP_FLOOR
+KNOWN = {(name, "inside"): _INSIDE for name in CASES if name not in ("teapot +1e4", "lid apex zoom")}
 
 
 def cases(check):

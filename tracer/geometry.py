@@ -22,25 +22,42 @@ PRECISION_BITS = {"f32": 24, "f64": 53}
 
 @dataclass(frozen=True)
 class Geometry:
+    """Kernel arrays. The kernel's "patches" are leaves: each scene patch pre-split 4^k ways
+    (k = `presplit`), so that every leaf has its own small frame (see module docstring)."""
+
     precision: str
-    ctrl: np.ndarray      # (4, total points) working dtype, local to the patch's frame; row 3 the
+    ctrl: np.ndarray      # (4, total points) working dtype, local to the leaf's frame; row 3 the
                           # weight, rows 0-2 premultiplied by it (homogeneous) for rational patches
-    pstart: np.ndarray    # (n_patches + 1,) int64
-    deg_u: np.ndarray     # (n_patches,) int32
-    deg_v: np.ndarray     # (n_patches,) int32
-    rational: np.ndarray  # (n_patches,) int8: 1 for rational patches
-    frame: np.ndarray     # (n_patches, 3) float64 frame origin of each patch
-    eps: np.ndarray       # (n_patches, 3) float64 bound on |stored surface - true surface| per axis
-    patch_box: np.ndarray # (n_patches, 6) float64 tight world boxes (one quad split, padded)
+    pstart: np.ndarray    # (n_leaves + 1,) int64
+    deg_u: np.ndarray     # (n_leaves,) int32
+    deg_v: np.ndarray     # (n_leaves,) int32
+    rational: np.ndarray  # (n_leaves,) int8: 1 for rational patches
+    frame: np.ndarray     # (n_leaves, 3) float64 frame origin of each leaf
+    eps: np.ndarray       # (n_leaves, 3) float64 bound on |stored surface - true surface| per axis
+    leaf_box: np.ndarray  # (n_leaves, 6) float64 tight world boxes (one quad split, padded)
     bvh: Bvh
-    patch_domain: np.ndarray  # (n_patches, 4) float64 u0 u1 v0 v1: the patch in its surface's parameters
-    patch_trim: np.ndarray    # (n_patches,) int32 surface whose trimming loops apply, -1: none
+    leaf_domain: np.ndarray   # (n_leaves, 4) float64 u0 u1 v0 v1: the leaf in its surface's parameters
+    patch_trim: np.ndarray    # (n_leaves,) int32 surface whose trimming loops apply, -1: none
     trim_arrays: tuple        # seg_points, seg_start, surf_seg_start, start_inside (trim_kernel)
+    leaf_patch: np.ndarray    # (n_leaves,) int32 the scene patch of each leaf
+    leaf_param: np.ndarray    # (n_leaves, 4) float64 the leaf's u0 u1 v0 v1 within its scene patch
+    presplit: int = 0
+
+    @property
+    def patch_box(self) -> np.ndarray:
+        """(n_scene_patches, 6) world box of each scene patch (the union of its leaves' boxes)."""
+        n = int(self.leaf_patch.max()) + 1
+        box = np.empty((n, 6))
+        box[:, :3] = np.inf
+        box[:, 3:] = -np.inf
+        np.minimum.at(box[:, :3], self.leaf_patch, self.leaf_box[:, :3])
+        np.maximum.at(box[:, 3:], self.leaf_patch, self.leaf_box[:, 3:])
+        return box
 
     def trims_for(self, use_trims: bool) -> tuple:
         """The kernel's trim tuple; with use_trims False no patch is trimmed."""
         patch_trim = self.patch_trim if use_trims else np.full_like(self.patch_trim, -1)
-        return (patch_trim, self.patch_domain) + self.trim_arrays
+        return (patch_trim, self.leaf_domain) + self.trim_arrays
 
     @property
     def trim_points(self) -> int:
@@ -65,7 +82,8 @@ class Geometry:
         return max_depth_for(self.bits)
 
     def patch_points(self, p: int) -> np.ndarray:
-        """World control points of patch p as stored (working precision widened), (count, 3)."""
+        """World control points of leaf p as stored (working precision widened), (count, 3);
+        with presplit 0 the leaves are the scene patches."""
         a, b = self.pstart[p], self.pstart[p + 1]
         local = self.ctrl[:, a:b].T.astype(np.float64)
         return local[:, :3] / local[:, 3:] + self.frame[p]
@@ -95,18 +113,66 @@ def tight_box(grid: np.ndarray) -> np.ndarray:
     return np.concatenate([pts.min(axis=0), pts.max(axis=0)])
 
 
-def prepare(scene, precision: str = "f32") -> Geometry:
-    """Kernel arrays for a loaded scene (tracer.scene.Scene) in the given precision."""
+MAX_LEAVES = 16384  # pre-splitting stops before a scene would exceed this many leaves
+
+
+def auto_presplit(n_patches: int) -> int:
+    """Pre-split levels for a scene: up to 3 (64 leaves a patch) while leaves stay few."""
+    k = 0
+    while k < 3 and n_patches * 4 ** (k + 1) <= MAX_LEAVES:
+        k += 1
+    return k
+
+
+def _leaves(scene, k: int):
+    """Each scene patch split 2^k x 2^k ways in float64 (homogeneous, exact up to float64 rounding).
+
+    Returns points (Euclidean + weight), starts, degrees, rational flags, the scene patch and the
+    (u0, u1, v0, v1) within it of every leaf, in scene patch order, v-major within a patch."""
+    if k == 0:
+        n = scene.n_patches
+        return (scene.points, np.asarray(scene.point_start, np.int64), scene.degree_u, scene.degree_v,
+                scene.rational, np.arange(n, dtype=np.int32), np.tile([0.0, 1.0, 0.0, 1.0], (n, 1)))
+    cells = 2 ** k
+    points, starts, du, dv, rat, owner, param = [], [0], [], [], [], [], []
+    for p in range(scene.n_patches):
+        m, n = int(scene.degree_u[p]), int(scene.degree_v[p])
+        g = scene.points[scene.point_start[p]:scene.point_start[p + 1]].reshape(n + 1, m + 1, 4)
+        rows = [np.concatenate([g[..., :3] * g[..., 3:], g[..., 3:]], axis=-1)]
+        for _ in range(k):  # halve along v: rows of sub-grids, bottom to top
+            rows = [h for r in rows for h in halve(r, 0)]
+        for j, row in enumerate(rows):
+            cols = [row]
+            for _ in range(k):
+                cols = [h for c in cols for h in halve(c, 1)]
+            for i, q in enumerate(cols):
+                e = np.concatenate([q[..., :3] / q[..., 3:], q[..., 3:]], axis=-1).reshape(-1, 4)
+                points.append(e)
+                starts.append(starts[-1] + len(e))
+                du.append(m)
+                dv.append(n)
+                rat.append(scene.rational[p])
+                owner.append(p)
+                param.append((i / cells, (i + 1) / cells, j / cells, (j + 1) / cells))
+    return (np.concatenate(points), np.asarray(starts, np.int64), np.asarray(du, np.int32),
+            np.asarray(dv, np.int32), np.asarray(rat, bool), np.asarray(owner, np.int32), np.asarray(param))
+
+
+def prepare(scene, precision: str = "f32", presplit: int | None = None) -> Geometry:
+    """Kernel arrays for a loaded scene (tracer.scene.Scene) in the given precision.
+
+    presplit: pre-split levels (None: `auto_presplit`); 0 keeps the scene's patches as they are."""
     if precision not in PRECISION_DTYPE:
         raise ValueError(f"precision must be one of {', '.join(PRECISION_DTYPE)}, got {precision!r}")
     if scene.n_patches == 0:
         raise ValueError(f"{scene.path or 'scene'}: no patches to render")
+    k = auto_presplit(scene.n_patches) if presplit is None else int(presplit)
+    all_points, start, deg_u, deg_v, rational, leaf_patch, leaf_param = _leaves(scene, k)
     dtype = PRECISION_DTYPE[precision]
     bits = PRECISION_BITS[precision]
-    n = scene.n_patches
-    start = np.asarray(scene.point_start, np.int64)
-    xyz = scene.points[:, :3]
-    weight = scene.points[:, 3:4]
+    n = len(deg_u)
+    xyz = all_points[:, :3]
+    weight = all_points[:, 3:4]
     patch_of_point = np.repeat(np.arange(n), np.diff(start))
     lo = np.full((n, 3), np.inf)
     hi = np.full((n, 3), -np.inf)
@@ -117,12 +183,16 @@ def prepare(scene, precision: str = "f32") -> Geometry:
     homogeneous = np.hstack([local * weight, weight])
     ctrl = np.ascontiguousarray(homogeneous.T.astype(dtype))
     stored = ctrl.T.astype(np.float64)
-    eps = _rounding_bounds(local, weight, stored, patch_of_point, n, bits)
+    eps = _rounding_bounds(local, weight, stored, patch_of_point, n)
+    if k:  # the float64 pre-split rounded too: a few ulps of the world coordinates
+        split_err = np.zeros((n, 3))
+        np.maximum.at(split_err, patch_of_point, np.abs(xyz) * (k + 1) * 2.0 ** -52)
+        eps = eps + split_err
     boxes = np.zeros((n, 6))
     for p in range(n):
         a, b = start[p], start[p + 1]
-        m, k = int(scene.degree_u[p]), int(scene.degree_v[p])
-        grid = stored[a:b].reshape(k + 1, m + 1, 4)
+        m, kv = int(deg_u[p]), int(deg_v[p])
+        grid = stored[a:b].reshape(kv + 1, m + 1, 4)
         box = tight_box(grid)
         # Kernel boxes are widened by eps and the subdivision's rounding bound (intersect._widen).
         magnitude = np.abs(grid[..., :3] / grid[..., 3:]).max()
@@ -130,10 +200,16 @@ def prepare(scene, precision: str = "f32") -> Geometry:
         boxes[p, :3] = box[:3] - pad + frame[p]
         boxes[p, 3:] = box[3:] + pad + frame[p]
     patch_trim, trim_arrays = _trim_arrays(scene)
-    return Geometry(precision, ctrl, start, np.asarray(scene.degree_u, np.int32),
-                    np.asarray(scene.degree_v, np.int32), np.asarray(scene.rational, np.int8),
-                    frame, eps, boxes, build_bvh(boxes),
-                    np.ascontiguousarray(scene.patch_domain, np.float64), patch_trim, trim_arrays)
+    domain = np.asarray(scene.patch_domain, np.float64)[leaf_patch]
+    leaf_domain = np.column_stack([
+        domain[:, 0] + leaf_param[:, 0] * (domain[:, 1] - domain[:, 0]),
+        domain[:, 0] + leaf_param[:, 1] * (domain[:, 1] - domain[:, 0]),
+        domain[:, 2] + leaf_param[:, 2] * (domain[:, 3] - domain[:, 2]),
+        domain[:, 2] + leaf_param[:, 3] * (domain[:, 3] - domain[:, 2])])
+    return Geometry(precision, ctrl, start, np.asarray(deg_u, np.int32), np.asarray(deg_v, np.int32),
+                    np.asarray(rational, np.int8), frame, eps, boxes, build_bvh(boxes),
+                    np.ascontiguousarray(leaf_domain), patch_trim[leaf_patch], trim_arrays,
+                    leaf_patch, np.ascontiguousarray(leaf_param, np.float64), k)
 
 
 def _trim_arrays(scene):
@@ -150,7 +226,7 @@ def _trim_arrays(scene):
     return patch_trim, arrays
 
 
-def _rounding_bounds(local, weight, stored, patch_of_point, n, bits):
+def _rounding_bounds(local, weight, stored, patch_of_point, n):
     """Per patch and axis, a bound on how far the surface of the stored (rounded) points lies
     from the true one: the largest error of a stored Euclidean point, plus, for rational
     patches, what rounded weights can move a convex combination (2 du diameter)."""

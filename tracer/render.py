@@ -79,7 +79,8 @@ def kernel_args(geom: Geometry, opts: Options, pixel_angle: float):
     return (geom.ctrl, geom.pstart, geom.deg_u, geom.deg_v, geom.rational, geom.frame, geom.eps,
             bvh.node_box, bvh.node_child, bvh.node_patch,
             criterion, param, SPLIT_CODE[opts.split], geom.max_depth, geom.bits, slope,
-            max(geom.max_points, 16), bvh.depth + 2, geom.trims_for(opts.trims), geom.trim_points)
+            max(geom.max_points, 16), bvh.depth + 2, geom.trims_for(opts.trims), geom.trim_points,
+            geom.leaf_patch)
 
 
 def thread_count(opts: Options) -> int:

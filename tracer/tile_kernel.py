@@ -21,12 +21,13 @@ from .trim_kernel import MAX_SPLIT_DEPTH
 def render_tile(y0, y1, x0, x1, origins, dirs,
                 ctrl, pstart, deg_u, deg_v, rational, frame, eps, node_box, node_child, node_patch,
                 criterion, param, split_mode, max_depth, bits, detail_slope, max_points, stack_nodes,
-                trims, trim_points,
+                trims, trim_points, leaf_patch,
                 out_hit, out_t, out_pos, out_lo, out_hi, out_normal, out_uv, out_patch, out_effort):
     """Trace pixels [y0, y1) x [x0, x1). origins/dirs: (H, W, 3) float64 rays as traced.
 
     detail_slope: threshold of detail per unit distance (adaptive criterion; 0 otherwise).
-    trims: the trim tuple (geometry.Geometry.trims_for). Outputs follow the per-pixel contract
+    trims: the trim tuple (geometry.Geometry.trims_for); the kernel's patches are leaves, and
+    leaf_patch maps them to scene patches for the output. Outputs follow the per-pixel contract
     (see render.Frame); uv is in the parameters of the patch's surface (NURBS), else of the patch.
     """
     slots = max_depth + 2
@@ -76,7 +77,7 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
                 out_uv[y, x, 1] = math.nan
                 continue
             out_hit[y, x] = True
-            out_patch[y, x] = int(hit[H_PATCH])
+            out_patch[y, x] = leaf_patch[int(hit[H_PATCH])]
             along = 0.0
             for c in range(3):
                 lo = hit[H_LO + c]

@@ -84,7 +84,8 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
                     pixel=(0, 0), capacity: int = TRACE_CAPACITY) -> PixelTrace:
     """Trace one ray with step recording; same kernel and options as the renderer."""
     (ctrl, pstart, deg_u, deg_v, rational, frame, eps, node_box, node_child, node_patch, criterion, param, split_mode,
-     max_depth, bits, slope, max_points, stack_nodes, trims, trim_points) = kernel_args(geom, opts, pixel_angle)
+     max_depth, bits, slope, max_points, stack_nodes, trims, trim_points, leaf_patch) = kernel_args(
+        geom, opts, pixel_angle)
     buf, box, mf, mi, order, f32, i32, lray = scratch_for(max_points, max_depth, ctrl.dtype)
     node_stack = np.zeros(max(stack_nodes, 128), np.int32)
     node_tin = np.zeros(len(node_stack))
@@ -115,11 +116,26 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
         t = min(max(float((centre - o) @ d) / (length * length), hit[H_TIN]), hit[H_TOUT])
     uv = np.array([hit[H_U], hit[H_V]])
     if found:  # in the parameters of the patch's surface (NURBS), as the renderer reports them
-        dom = geom.patch_domain[int(hit[H_PATCH])]
+        dom = geom.leaf_domain[int(hit[H_PATCH])]
         uv = np.array([dom[0] + uv[0] * (dom[1] - dom[0]), dom[2] + uv[1] * (dom[3] - dom[2])])
-    return PixelTrace(tuple(pixel), found, int(hit[H_PATCH]) if found else -1, t, centre, lo, hi, normal,
-                      uv, int(effort), trace[0][:k].copy(), trace[1][:k].copy(),
+    steps_f, steps_i = _to_scene_patches(geom, trace[0][:k].copy(), trace[1][:k].copy())
+    return PixelTrace(tuple(pixel), found, int(leaf_patch[int(hit[H_PATCH])]) if found else -1, t, centre,
+                      lo, hi, normal, uv, int(effort), steps_f, steps_i,
                       bool(trace[2][1]), int(trace[2][2]))
+
+
+def _to_scene_patches(geom: Geometry, steps_f: np.ndarray, steps_i: np.ndarray):
+    """Steps of leaves as steps of scene patches: patch index, (u, v) within the scene patch, and
+    depth counted from the scene patch (a leaf of a 4^k pre-split starts at depth 2k)."""
+    leaf = steps_i[:, 0].copy()
+    steps_i[:, 0] = geom.leaf_patch[leaf]
+    steps_i[:, 1] += 2 * geom.presplit
+    lp = geom.leaf_param[leaf]
+    for lo, hi in ((0, 1), (2, 3)):
+        a, b = steps_f[:, lo].copy(), steps_f[:, hi].copy()
+        steps_f[:, lo] = lp[:, lo] + a * (lp[:, hi] - lp[:, lo])
+        steps_f[:, hi] = lp[:, lo] + b * (lp[:, hi] - lp[:, lo])
+    return steps_f, steps_i
 
 
 def trace_pixel(scene, opts: Options, x: int, y: int, *, size=None, view: View | None = None,
