@@ -15,6 +15,7 @@ from tracer.plot import EVENT_COLOURS
 from tracer.trace_one import trace_ray_steps
 
 from .state import Inspection
+from .surface_info import hit_surface, info_json
 
 MAX_OUTLINED_BOXES = 4000
 CURRENT_RGBA = (1.0, 1.0, 1.0, 1.0)
@@ -56,17 +57,28 @@ def inspect_pixel(geometry, scene, opts: Options, view, size, px: int, py: int) 
     error = None
     if trace.hit and ref.hit:
         error = float(np.sum(np.abs(trace.position - ref.position)))
-    return Inspection((px, py), trace, ref, len(trace.steps_f) - 1, error, view, opts)
+    ins = Inspection((px, py), trace, ref, len(trace.steps_f) - 1, error, view, opts)
+    # The hit's surface (NURBS, IGES entity, trim loops): gathered once here, where the scene is
+    # at hand. An attribute, not a field, until state.Inspection gains `surface`.
+    ins.surface = hit_surface(scene, trace.patch, trace.uv) if trace.hit else None
+    return ins
+
+
+def inspection_surface(ins: Inspection) -> dict | None:
+    """The inspected hit's surface_info.hit_surface(...), or None (a miss, or not gathered)."""
+    return getattr(ins, "surface", None)
 
 
 def inspection_json(ins: Inspection) -> dict:
-    """The contract's trace JSON for the inspected pixel, with the error against float64 added."""
+    """The contract's trace JSON for the inspected pixel, with the error against float64 and the
+    hit's surface (surface_info.hit_surface: NURBS surface, parameters, trim loops) added."""
     out = ins.trace.to_json()
     ref = ins.reference
     out["error"] = ins.error
     out["reference"] = {"hit": bool(ref.hit), "patch": int(ref.patch),
                         "position": [float(v) for v in ref.position] if ref.hit else None} if ref else None
     out["options"] = {k: getattr(ins.opts, k) for k in ins.opts.__dataclass_fields__} if ins.opts else None
+    out["surface"] = info_json(inspection_surface(ins))
     return out
 
 

@@ -1,4 +1,5 @@
-"""Inspector panel: the clicked pixel's hit and its subdivision trace (Dammertz figures 2.10-2.11)."""
+"""Inspector panel: the clicked pixel's hit, its surface (NURBS, trims) and its subdivision trace
+(Dammertz figures 2.10-2.11)."""
 from __future__ import annotations
 
 import numpy as np
@@ -7,8 +8,17 @@ from imgui_bundle import imgui, implot
 from tracer.intersect import EVENT_NAMES
 from tracer.plot import EVENT_COLOURS, OPTIMUM_COLOUR
 
+from .picking import inspection_surface
+from .surface_info import summary_rows as surface_rows
+
 PLOT_HEIGHT = 230
 TABLE_HEIGHT = 200
+TRIM_PLOT_SIZE = 330      # the (u, v) plot's side at most, pixels
+TRIM_LEGEND_HEIGHT = 24   # its legend, below it
+LOOP_RGBA = {"trim": (0.25, 0.8, 0.35, 1.0), "hole": (1.0, 0.45, 0.2, 1.0)}  # kept region / removed
+SURFACE_DOMAIN_RGBA = (0.55, 0.55, 0.6, 1.0)
+PATCH_DOMAIN_RGBA = (0.35, 0.6, 1.0, 0.9)
+UV_HIT_RGBA = (1.0, 0.1, 0.1, 1.0)
 
 
 def _rgba(rgb255, a=1.0):
@@ -33,6 +43,62 @@ def summary_rows(ins) -> list:
         rows.append(("error", "hole (float64 hits)" if ins.reference.hit else "false hit (float64 misses)"))
     rows.append(("boxes", f"{len(t.steps_f)}" + (" (trace truncated)" if t.truncated else "")))
     return rows
+
+
+def _table(table_id: str, rows) -> None:
+    """(label, text) rows in two columns, the text wrapped."""
+    if imgui.begin_table(table_id, 2, imgui.TableFlags_.sizing_stretch_prop):
+        for label, text in rows:
+            imgui.table_next_row()
+            imgui.table_next_column()
+            imgui.text(label)
+            imgui.table_next_column()
+            imgui.text_wrapped(text)
+        imgui.end_table()
+
+
+def _rect(label: str, d, rgba, weight: float = 1.0) -> None:
+    """Rectangle u0 u1 v0 v1 as a closed line."""
+    xs = np.array([d[0], d[1], d[1], d[0], d[0]], np.float64)
+    ys = np.array([d[2], d[2], d[3], d[3], d[2]], np.float64)
+    implot.plot_line(label, xs, ys, implot.Spec(line_color=rgba, line_weight=weight))
+
+
+def trim_plot(info: dict, plot_id: str) -> None:
+    """The surface's trim loops in its (u, v) domain (trim green, hole orange), the hit patch's
+    domain and the hit's (u, v) as a red cross."""
+    dom = info["surface_domain"]
+    pad_u, pad_v = 0.04 * (dom[1] - dom[0]), 0.04 * (dom[3] - dom[2])
+    # About square, the whole domain in view: u and v units are unrelated, so no equal aspect.
+    side = min(imgui.get_content_region_avail().x, TRIM_PLOT_SIZE)
+    if not implot.begin_plot(plot_id, (side, side + TRIM_LEGEND_HEIGHT)):
+        return
+    implot.setup_axes("u", "v")
+    implot.setup_legend(implot.Location_.south, implot.LegendFlags_.outside | implot.LegendFlags_.horizontal)
+    implot.setup_axes_limits(dom[0] - pad_u, dom[1] + pad_u, dom[2] - pad_v, dom[3] + pad_v)
+    _rect("surface", dom, SURFACE_DOMAIN_RGBA)
+    _rect("patch", info["patch_domain"], PATCH_DOMAIN_RGBA, 1.5)
+    for loop in info["loops"]:
+        pts = np.asarray(loop["points"], np.float64)
+        implot.plot_line(loop["kind"], np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]),
+                         implot.Spec(line_color=LOOP_RGBA[loop["kind"]], line_weight=2.0))
+    u, v = info["uv"]
+    implot.plot_scatter("hit", np.array([u]), np.array([v]),
+                        implot.Spec(marker=implot.Marker_.cross, marker_size=7, line_weight=2.0,
+                                    marker_line_color=UV_HIT_RGBA, marker_fill_color=UV_HIT_RGBA))
+    implot.end_plot()
+
+
+def surface_section(ins) -> None:
+    """The hit's surface: where it came from, its (u, v) and domain; trim loops when trimmed."""
+    info = inspection_surface(ins)
+    if info is None:
+        return
+    imgui.separator_text("Surface")
+    _table("surface", surface_rows(info))
+    if info.get("trimmed"):
+        # the id changes with the surface and pixel, so a new inspection frames its own domain
+        trim_plot(info, f"##trims-{info['surface']}-{ins.pixel[0]}-{ins.pixel[1]}")
 
 
 def diameter_plot(ins) -> bool:
@@ -107,18 +173,13 @@ def ui_inspector(state) -> bool:
     if ins is None:
         imgui.text_disabled("click a pixel of the image to inspect its ray")
         return False
-    if imgui.begin_table("summary", 2, imgui.TableFlags_.sizing_stretch_prop):
-        for label, text in summary_rows(ins):
-            imgui.table_next_row()
-            imgui.table_next_column()
-            imgui.text(label)
-            imgui.table_next_column()
-            imgui.text_wrapped(text)
-        imgui.end_table()
+    _table("summary", summary_rows(ins))
+    surface_section(ins)
     k = len(ins.trace.steps_f)
     if k == 0:
         imgui.text_disabled("the ray met no patch box")
         return False
+    imgui.separator_text("Subdivision")
     changed = diameter_plot(ins)
     moved, step = imgui.slider_int("step", ins.step if ins.step >= 0 else k - 1, 0, k - 1)
     if moved:
