@@ -57,16 +57,14 @@ def inspect_pixel(geometry, scene, opts: Options, view, size, px: int, py: int) 
     error = None
     if trace.hit and ref.hit:
         error = float(np.sum(np.abs(trace.position - ref.position)))
-    ins = Inspection((px, py), trace, ref, len(trace.steps_f) - 1, error, view, opts)
-    # The hit's surface (NURBS, IGES entity, trim loops): gathered once here, where the scene is
-    # at hand. An attribute, not a field, until state.Inspection gains `surface`.
-    ins.surface = hit_surface(scene, trace.patch, trace.uv) if trace.hit else None
-    return ins
+    # The hit's surface (NURBS, IGES entity, trim loops): gathered once here, where the scene is at hand.
+    surface = hit_surface(scene, trace.patch, trace.uv) if trace.hit else None
+    return Inspection((px, py), trace, ref, len(trace.steps_f) - 1, error, view, opts, surface)
 
 
 def inspection_surface(ins: Inspection) -> dict | None:
     """The inspected hit's surface_info.hit_surface(...), or None (a miss, or not gathered)."""
-    return getattr(ins, "surface", None)
+    return ins.surface
 
 
 def inspection_json(ins: Inspection) -> dict:

@@ -121,6 +121,7 @@ class Inspection:
     error: float | None = None   # L1 distance to the float64 hit
     view: View | None = None     # the view it was traced in
     opts: Options | None = None
+    surface: dict | None = None  # the hit's NURBS surface, parameters and trim loops (surface_info)
 
 
 @dataclass
