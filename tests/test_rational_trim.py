@@ -80,7 +80,7 @@ def test_kernel_trim_parity_matches_the_reference():
     geom = prepare(scene, "f32")
     surfaces = sorted({int(s) for s in geom.patch_trim if s >= 0})
     assert surfaces
-    seg_points, seg_start, surf_seg_start, start_inside = geom.trim_arrays
+    seg_points, seg_start, surf_seg_start, start_inside, _ = geom.trim_arrays
     h, m = trim_scratch(geom.trim_points)
     rng = np.random.default_rng(3)
     for surface in surfaces:

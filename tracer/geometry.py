@@ -15,6 +15,7 @@ import numpy as np
 
 from .bvh import Bvh, build_bvh
 from .intersect import max_depth_for
+from .trim_kernel import segment_boxes
 
 PRECISION_DTYPE = {"f32": np.float32, "f64": np.float64}
 PRECISION_BITS = {"f32": 24, "f64": 53}
@@ -38,7 +39,7 @@ class Geometry:
     bvh: Bvh
     leaf_domain: np.ndarray   # (n_leaves, 4) float64 u0 u1 v0 v1: the leaf in its surface's parameters
     patch_trim: np.ndarray    # (n_leaves,) int32 surface whose trimming loops apply, -1: none
-    trim_arrays: tuple        # seg_points, seg_start, surf_seg_start, start_inside (trim_kernel)
+    trim_arrays: tuple        # seg_points, seg_start, surf_seg_start, start_inside, seg_box (trim_kernel)
     leaf_patch: np.ndarray    # (n_leaves,) int32 the scene patch of each leaf
     leaf_param: np.ndarray    # (n_leaves, 4) float64 the leaf's u0 u1 v0 v1 within its scene patch
     presplit: int = 0
@@ -217,12 +218,15 @@ def _trim_arrays(scene):
     trims = getattr(scene, "trims", None)
     surface = np.asarray(scene.patch_surface, np.int32)
     if trims is None or trims.n_surfaces == 0:
-        empty = (np.zeros((0, 3)), np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(0, np.int8))
+        empty = (np.zeros((0, 3)), np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(0, np.int8),
+                 np.zeros((0, 4)))
         return np.full(scene.n_patches, -1, np.int32), empty
     has = np.asarray(trims.has_trim, bool)
     patch_trim = np.where((surface >= 0) & has[np.maximum(surface, 0)], surface, -1).astype(np.int32)
-    arrays = (np.ascontiguousarray(trims.seg_points, np.float64), np.asarray(trims.seg_start, np.int64),
-              np.asarray(trims.surf_seg_start, np.int64), np.asarray(trims.start_inside, np.int8))
+    seg_points = np.ascontiguousarray(trims.seg_points, np.float64)
+    seg_start = np.asarray(trims.seg_start, np.int64)
+    arrays = (seg_points, seg_start, np.asarray(trims.surf_seg_start, np.int64),
+              np.asarray(trims.start_inside, np.int8), segment_boxes(seg_points, seg_start))
     return patch_trim, arrays
 
 

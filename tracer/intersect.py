@@ -27,7 +27,8 @@ Scratch (one set per thread), S = max depth + 2 slots:
   buf   (S, 4, P) working dtype   control points per slot (row 3: weights of rational patches)
   box   (S, 6)    float64         widened local box per slot: lo xyz, hi xyz
   mf    (S, 13)   float64         per slot, columns M_*
-  mi    (S, 4)    int32           per slot: depth, stalled, last split (0 u, 1 v), trace step
+  mi    (S, 5)    int32           per slot: depth, stalled, last split (0 u, 1 v), trace step,
+                                  trim state (0 undecided, 1 wholly in the kept region)
   order (S,)      int32           stack position -> slot (children swap order without copying)
   f32   (1,)      float32         with its int32 view i32: rounds to and steps on the float32 grid
 """
@@ -39,7 +40,7 @@ import numpy as np
 from numba import njit
 
 from .bezier import control_box, control_box_rational, split_u, split_u_cubic, split_v, split_v_cubic
-from .trim_kernel import trim_inside
+from .trim_kernel import rect_meets_loops, trim_inside
 from .ray import (H_DEPTH, H_DU, H_DV, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, R_D, R_DT, R_N1,
                   R_N2, R_O, R_T0, slab)
 
@@ -352,6 +353,9 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ray, hit,
     mi[s, 0] = 0
     mi[s, 1] = 0
     mi[s, 2] = -1
+    mi[s, 4] = 0
+    surface = trims[0][p]
+    dom = trims[1]
     sub_scale = math.ldexp(1.0, SUB_ERR_BITS - bits)
     shrink_factor = 1.0 - math.ldexp(1.0, 4 - bits)  # a real decrease: more than 16 ulps
     _raw_box(buf, box, s, count, is_rational)
@@ -371,6 +375,20 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ray, hit,
             continue
         d = mf[a, M_D]
         depth = mi[a, 0]
+        if surface >= 0 and mi[a, 4] == 0 and depth % 2 == 0:
+            # Clear of every trimming curve? Then one parity test decides the whole sub-patch.
+            u0 = dom[p, 0] + mf[a, M_U0] * (dom[p, 1] - dom[p, 0])
+            u1 = dom[p, 0] + mf[a, M_U1] * (dom[p, 1] - dom[p, 0])
+            v0 = dom[p, 2] + mf[a, M_V0] * (dom[p, 3] - dom[p, 2])
+            v1 = dom[p, 2] + mf[a, M_V1] * (dom[p, 3] - dom[p, 2])
+            if not rect_meets_loops(surface, min(u0, u1), max(u0, u1), min(v0, v1), max(v0, v1), trims[4], trims[6]):
+                if trim_inside(surface, 0.5 * (u0 + u1), 0.5 * (v0 + v1), trims[2], trims[3], trims[4], trims[5],
+                               trim_h, trim_m):
+                    mi[a, 4] = 1
+                else:
+                    if trace is not None:
+                        _set_event(trace, mi[a, 3], MISS)  # trimmed away as a whole
+                    continue
         # The criteria's measure: the grid box's L1 diameter (>= d) once d is near a threshold.
         limit = GRID_PREFILTER * mf[a, M_GULP]
         if criterion == FIXED:
@@ -398,9 +416,7 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ray, hit,
             # At the depth cap the precision is spent: accept rather than reject (a rejection
             # there would send the search through every branch down to the cap).
             found = depth >= max_depth or _hull_hit(buf, a, count, is_rational, mf, ray, eps, p, sub_scale)
-            surface = trims[0][p]
-            if found and surface >= 0:
-                dom = trims[1]
+            if found and surface >= 0 and mi[a, 4] == 0:
                 u = dom[p, 0] + 0.5 * (mf[a, M_U0] + mf[a, M_U1]) * (dom[p, 1] - dom[p, 0])
                 v = dom[p, 2] + 0.5 * (mf[a, M_V0] + mf[a, M_V1]) * (dom[p, 3] - dom[p, 2])
                 found = trim_inside(surface, u, v, trims[2], trims[3], trims[4], trims[5], trim_h, trim_m)
@@ -447,6 +463,7 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ray, hit,
             mf[b, M_OX + c] = mf[a, M_OX + c]
         mf[b, M_GULP] = mf[a, M_GULP]
         stalled = 0 if shrank else 1
+        mi[b, 4] = mi[a, 4]
         for child in (a, b):
             _widen(box, mf, child, eps, p, sub_scale)
             mf[child, M_DPAR] = d_crit

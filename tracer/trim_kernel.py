@@ -8,7 +8,8 @@ otherwise it is halved, until its box stops shrinking. This mirrors the
 reference `tracer.trim.segment_parity` step for step, in float64.
 
 Trim arrays (tracer.trim.TrimSet): seg_points (S, 3) u v w (Euclidean + weight),
-seg_start (n_segs + 1,), surf_seg_start (n_surfaces + 1,), start_inside (n_surfaces,) int8.
+seg_start (n_segs + 1,), surf_seg_start (n_surfaces + 1,), start_inside (n_surfaces,) int8,
+and seg_box (n_segs, 4): u0 u1 v0 v1 of each segment's control points (its curve lies inside).
 Scratch: stack_h (D, P, 3) homogeneous pieces, stack_m (D, 6) per piece: end a (u, v),
 end b (u, v), parent diameter, depth; D >= MAX_SPLIT_DEPTH + 2, P >= max segment points.
 """
@@ -94,6 +95,26 @@ def trim_inside(surface, u, v, seg_points, seg_start, surf_seg_start, start_insi
     for s in range(surf_seg_start[surface], surf_seg_start[surface + 1]):
         odd ^= _segment_parity(seg_points, seg_start[s], seg_start[s + 1], u, v, stack_h, stack_m)
     return odd != 0
+
+
+@njit(cache=True, nogil=True, inline='always')
+def rect_meets_loops(surface, u0, u1, v0, v1, surf_seg_start, seg_box):
+    """Could a trimming curve of `surface` pass through the parameter rectangle? If not, the whole
+    rectangle is on one side of every loop: one parity test at any point classifies all of it."""
+    for s in range(surf_seg_start[surface], surf_seg_start[surface + 1]):
+        if seg_box[s, 1] >= u0 and seg_box[s, 0] <= u1 and seg_box[s, 3] >= v0 and seg_box[s, 2] <= v1:
+            return True
+    return False
+
+
+def segment_boxes(seg_points: np.ndarray, seg_start: np.ndarray) -> np.ndarray:
+    """(n_segs, 4) u0 u1 v0 v1 of each segment's control points."""
+    n = len(seg_start) - 1
+    box = np.zeros((n, 4))
+    for s in range(n):
+        pts = seg_points[seg_start[s]:seg_start[s + 1], :2]
+        box[s] = (pts[:, 0].min(), pts[:, 0].max(), pts[:, 1].min(), pts[:, 1].max())
+    return box
 
 
 def trim_scratch(max_points: int):
