@@ -44,6 +44,9 @@ def _fps_summary(frame_times) -> dict | None:
             "max_frame_ms": 1000 * t[-1]}
 
 
+CLICK_SETTLE_FRAMES = 8
+
+
 @dataclass
 class Script:
     sets: list = field(default_factory=list)        # "name=value", before the first render
@@ -62,6 +65,7 @@ class Script:
     _pending_at: list = field(default_factory=list)
     _click_stage: int = 0
     _click_pos: tuple = (0.0, 0.0)
+    _click_done: int = -1  # the frame the click reached the inspector
     _loaded_at: int | None = None
     _started: float = 0.0
 
@@ -113,6 +117,7 @@ class Script:
                     if ins is None or tuple(ins.trace.pixel) != tuple(self.click):
                         st.log(f"scripted click at {self.click} did not reach the inspector", "error")
                         self.exit_code = EXIT_CLICK
+                    self._click_done = st.frame_count
                 self._click_stage += 1
             return
         if self.load is not None and self._loaded_at is None and ready:
@@ -140,6 +145,8 @@ class Script:
     def finished(self, viewer) -> bool:
         if self._pending_at or (self.click is not None and self._click_stage < 5):
             return False
+        if self.click is not None and viewer.state.frame_count < self._click_done + CLICK_SETTLE_FRAMES:
+            return False  # the inspector's auto-fitted columns take a few frames to settle
         if self.load is not None and (self._loaded_at is None or viewer.state.frame_count < self._loaded_at + 2):
             return False
         return self.render_ready(viewer)
