@@ -1,8 +1,9 @@
 """Scene patches in the layout the kernels read: flat arrays in the working precision.
 
-Control points are stored relative to one frame origin per patch (the centre
-of its control-point box, a float32 number), so they round relative to the
-patch's own extent instead of its distance from the world origin. The exact
+Each scene patch is pre-split (exactly, in float64) into leaves, and control
+points are stored relative to one frame origin per leaf (the centre of its
+control-point box, a float32 number), so they round relative to the leaf's
+own extent instead of its distance from the world origin. The exact
 rounding error of the stored points is measured here (`eps`, per patch and
 axis); the kernel widens every box by it, so boxes contain the true surface
 and patches sharing an edge cannot leave a crack between them.
