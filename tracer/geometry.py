@@ -1,6 +1,6 @@
 """Scene patches in the layout the kernels read: flat arrays in the working precision.
 
-Each scene patch is pre-split (exactly, in float64) into leaves, and control
+Each scene patch is pre-split (in float64; its rounding joins eps) into leaves, and control
 points are stored relative to one frame origin per leaf (the centre of its
 control-point box, a float32 number), so they round relative to the leaf's
 own extent instead of its distance from the world origin. The exact
