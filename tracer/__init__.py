@@ -35,7 +35,7 @@ def _configure_numba_cache() -> None:
             if old.name != key and stale and re.fullmatch(r"psrt-[0-9a-f]{12}", old.name):
                 shutil.rmtree(old, ignore_errors=True)
     except OSError:
-        pass  # a read-only or missing base: numba reports its own errors
+        return  # a read-only or missing base: numba reports its own errors
 
 
 _configure_numba_cache()

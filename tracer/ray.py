@@ -16,6 +16,15 @@ HIT_LEN = 14
 _T_SLACK = 4.0 * 2.0 ** -52  # widen slab exits by a few float64 ulps: grazing rays keep their boxes
 
 
+@njit(cache=True, nogil=True, inline='always')
+def _unit(x, y, z):
+    """(x, y, z) scaled to length 1 (left as is when zero)."""
+    length = math.sqrt(x * x + y * y + z * z)
+    if length > 0.0:
+        return x / length, y / length, z / length
+    return x, y, z
+
+
 @njit(cache=True, nogil=True)
 def make_ray(ray, ox, oy, oz, dx, dy, dz, t_min, t0, dt):
     """Fill a ray record; zero direction components get an infinite inverse (see `slab`)."""
@@ -40,18 +49,8 @@ def make_ray(ray, ox, oy, oz, dx, dy, dz, t_min, t0, dt):
     ex = 1.0 if ax == 0 else 0.0
     ey = 1.0 if ax == 1 else 0.0
     ez = 1.0 if ax == 2 else 0.0
-    ax_, ay_, az_ = dy * ez - dz * ey, dz * ex - dx * ez, dx * ey - dy * ex
-    length = math.sqrt(ax_ * ax_ + ay_ * ay_ + az_ * az_)
-    if length > 0.0:
-        ax_ /= length
-        ay_ /= length
-        az_ /= length
-    bx_, by_, bz_ = dy * az_ - dz * ay_, dz * ax_ - dx * az_, dx * ay_ - dy * ax_
-    length = math.sqrt(bx_ * bx_ + by_ * by_ + bz_ * bz_)
-    if length > 0.0:
-        bx_ /= length
-        by_ /= length
-        bz_ /= length
+    ax_, ay_, az_ = _unit(dy * ez - dz * ey, dz * ex - dx * ez, dx * ey - dy * ex)
+    bx_, by_, bz_ = _unit(dy * az_ - dz * ay_, dz * ax_ - dx * az_, dx * ay_ - dy * ax_)
     ray[R_N1] = ax_
     ray[R_N1 + 1] = ay_
     ray[R_N1 + 2] = az_
