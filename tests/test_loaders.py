@@ -10,6 +10,7 @@ import pytest
 from tracer.errors import SceneError
 from tracer.formats.bpt import MAX_DEGREE, load_bpt, parse_bpt
 from tracer.scene import load_scene, scene_from_dict
+from mutate import mutate
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLES = REPO / "sample_models"
@@ -303,18 +304,9 @@ def test_mutations_raise_only_scene_errors(tmp_path):
     alphabet = "0123456789 -.,:[]{}\"\n#eEaNnx"
     for trial in range(300):
         base = scene_text if trial % 2 else bpt_text
-        chars = list(base)
-        for _ in range(rng.randint(1, 4)):
-            pos = rng.randrange(len(chars))
-            op = rng.random()
-            if op < 0.4:
-                del chars[pos]
-            elif op < 0.7:
-                chars.insert(pos, rng.choice(alphabet))
-            else:
-                chars[pos] = rng.choice(alphabet)
+        text = mutate(base, rng, alphabet)
         path = tmp_path / ("m.json" if trial % 2 else "m.bpt")
-        path.write_text("".join(chars))
+        path.write_text(text)
         try:
             load_scene(path)
         except SceneError:

@@ -12,6 +12,7 @@ from tracer.formats.obj import dumps_obj, load_obj, parse_obj
 from tracer.nurbs import NurbsCurve, NurbsSurface, bezier_surface_point, circle_arc
 from tracer.scene import load_scene, scene_from_dict
 from tracer.trim import inside
+from mutate import mutate
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_models"
 
@@ -285,18 +286,9 @@ def test_mutations_raise_only_scene_errors(tmp_path):
     base = HOLE
     alphabet = "0123456789 -./\n#\\abceghimnoprstuvx"
     for trial in range(300):
-        chars = list(base)
-        for _ in range(rng.randint(1, 4)):
-            pos = rng.randrange(len(chars))
-            op = rng.random()
-            if op < 0.4:
-                del chars[pos]
-            elif op < 0.7:
-                chars.insert(pos, rng.choice(alphabet))
-            else:
-                chars[pos] = rng.choice(alphabet)
+        text = mutate(base, rng, alphabet)
         try:
-            parse_obj("".join(chars), "m.obj")
+            parse_obj(text, "m.obj")
         except SceneError:
             pass
 
