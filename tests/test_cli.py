@@ -24,7 +24,7 @@ CONTRACT = {"ray_origin": ("float64", 3), "ray_dir": ("float64", 3), "hit": ("bo
             "position": ("float64", 3), "box_min": ("float64", 3), "box_max": ("float64", 3),
             "normal": ("float64", 3), "uv": ("float64", 2), "patch": ("int32", 0), "effort": ("int32", 0)}
 STAT_KEYS = {"rays", "hits", "time", "effort", "effort_hits", "error", "options", "size", "scene"}
-ERROR_KEYS = {"max", "min", "mean", "variance", "holes", "false_hits", "floor", "ratio", "inside_4ulp"}
+ERROR_KEYS = {"max", "min", "mean", "variance", "holes", "false_hits", "floor", "ratio", "inside_box", "inside_4ulp"}
 
 
 def run(*argv):

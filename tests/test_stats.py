@@ -54,7 +54,7 @@ def scene_stub(lights=()):
 # ---- error statistics -------------------------------------------------------------
 
 def naive_error_stats(frame, ref):
-    errs, floors, inside = [], [], []
+    errs, floors, inside, in_box = [], [], [], []
     holes = false_hits = 0
     h, w = frame.hit.shape
     for y in range(h):
@@ -67,6 +67,7 @@ def naive_error_stats(frame, ref):
                 errs.append(sum(abs(float(p[i]) - float(r[i])) for i in range(3)))
                 floors.append(sum(abs(float(np.float32(r[i])) - float(r[i])) for i in range(3)))
                 ok = True
+                in_box.append(all(frame.box_min[y, x, i] <= r[i] <= frame.box_max[y, x, i] for i in range(3)))
                 for i in range(3):
                     lo, hi = frame.box_min[y, x, i], frame.box_max[y, x, i]
                     ulp_lo = float(np.spacing(np.float32(abs(lo))))
@@ -76,7 +77,8 @@ def naive_error_stats(frame, ref):
     mean = sum(errs) / len(errs)
     return {"holes": holes, "false_hits": false_hits, "max": max(errs), "min": min(errs), "mean": mean,
             "variance": sum((e - mean) ** 2 for e in errs) / len(errs), "floor": sum(floors) / len(floors),
-            "inside_4ulp": sum(inside) / len(inside), "compared": len(errs)}
+            "inside_box": sum(in_box) / len(in_box), "inside_4ulp": sum(inside) / len(inside),
+            "compared": len(errs)}
 
 
 def test_error_stats_matches_naive_reference():
@@ -93,13 +95,13 @@ def test_error_stats_matches_naive_reference():
     for key, value in want.items():
         assert got[key] == pytest.approx(value, rel=1e-12, abs=0), key  # same sums, float64 rounding only
     assert got["ratio"] == pytest.approx(want["mean"] / want["floor"], rel=1e-12)
-    assert got["inside_4ulp"] < 1.0
+    assert got["inside_4ulp"] < 1.0 and got["inside_box"] <= got["inside_4ulp"]
 
 
 def test_error_stats_identical_frames_and_no_hits():
     ref = synthetic_frame()
     s = stats.error_stats(copy_frame(ref), ref)
-    assert s["max"] == 0 and s["mean"] == 0 and s["ratio"] == 0 and s["inside_4ulp"] == 1.0
+    assert s["max"] == 0 and s["mean"] == 0 and s["ratio"] == 0 and s["inside_4ulp"] == s["inside_box"] == 1.0
     empty = copy_frame(ref)
     empty.hit[:] = False
     s = stats.error_stats(empty, empty)

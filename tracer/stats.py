@@ -167,8 +167,8 @@ def error_stats(frame, ref) -> dict:
     holes: ref hit, frame missed; false_hits: frame hit, ref missed. Over pixels both hit:
     the L1 position error's max/min/mean/variance (Dammertz table 2.1), the float32 floor
     (mean L1 error of merely rounding ref.position to float32), ratio = mean / floor, and
-    inside_4ulp: the fraction of those hits whose ref.position lies in the final box
-    widened by 4 float32 ulps per coordinate.
+    inside_box: the fraction of those hits whose ref.position lies in the final box;
+    inside_4ulp: the same with the box widened by 4 float32 ulps per coordinate.
     """
     if frame.hit.shape != ref.hit.shape:
         raise ValueError(f"frame is {frame.hit.shape}, reference {ref.hit.shape}: not the same rays")
@@ -177,17 +177,18 @@ def error_stats(frame, ref) -> dict:
            "false_hits": int(np.sum(frame.hit & ~ref.hit))}
     if not both.any():
         return {**out, "max": None, "min": None, "mean": None, "variance": None, "floor": None,
-                "ratio": None, "inside_4ulp": None}
+                "ratio": None, "inside_box": None, "inside_4ulp": None}
     p, r = frame.position[both], ref.position[both]
     err = np.sum(np.abs(p - r), axis=-1)
     floor = float(np.mean(np.sum(np.abs(r.astype(np.float32).astype(np.float64) - r), axis=-1)))
     lo, hi = frame.box_min[both], frame.box_max[both]
+    in_box = np.all((r >= lo) & (r <= hi), axis=-1)
     inside = np.all((r >= lo - ULP_SLACK * ulp32(lo)) & (r <= hi + ULP_SLACK * ulp32(hi)), axis=-1)
     mean = float(err.mean())
     return {**out, "max": float(err.max()), "min": float(err.min()), "mean": mean,
             "variance": float(err.var()), "floor": floor,
             "ratio": mean / floor if floor > 0 else (1.0 if mean == 0 else math.inf),
-            "inside_4ulp": float(inside.mean())}
+            "inside_box": float(in_box.mean()), "inside_4ulp": float(inside.mean())}
 
 
 def json_safe(value):

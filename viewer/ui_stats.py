@@ -4,7 +4,8 @@ from __future__ import annotations
 from imgui_bundle import imgui
 
 ERROR_ROWS = (("max", "max error"), ("min", "min error"), ("mean", "mean error"), ("variance", "variance"),
-              ("floor", "float32 floor"), ("ratio", "mean / floor"), ("inside_4ulp", "ref in box (4 ulp)"))
+              ("floor", "float32 floor"), ("ratio", "mean / floor"), ("inside_box", "ref in box"),
+              ("inside_4ulp", "ref in box (4 ulp)"))
 
 
 def _fmt(v) -> str:
