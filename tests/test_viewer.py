@@ -141,13 +141,18 @@ def test_first_frame_matches_headless_render(xvfb, warm_kernels, tmp_path, teapo
     assert window.shape[1] > 128 and np.array_equal(window[:128, :128], actual)  # the view at 1:1, top-left
 
 
-def test_click_on_teapot_dumps_the_pixel_trace(xvfb, warm_kernels, tmp_path, teapot):
+def click_and_dump(xvfb, tmp_path, x, y):
+    """Run the viewer, click pixel (x, y), and return (inspector dump, status)."""
     dump = tmp_path / "trace.json"
-    x, y = TEAPOT_PIXEL
     code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--frames", 3000, "--click", f"{x},{y}",
                                         "--dump-inspector", dump], tmp_path)
     assert code == 0, err
-    got = json.loads(dump.read_text())
+    return json.loads(dump.read_text()), status
+
+
+def test_click_on_teapot_dumps_the_pixel_trace(xvfb, warm_kernels, tmp_path, teapot):
+    x, y = TEAPOT_PIXEL
+    got, _ = click_and_dump(xvfb, tmp_path, x, y)
     want = trace_pixel(teapot, Options(), x, y, size=SIZE)
     assert got["pixel"] == [x, y] and got["hit"] is True and want.hit
     assert got["steps"][-1]["event"] in ("hit", "miss", "pruned", "split")
@@ -158,12 +163,8 @@ def test_click_on_teapot_dumps_the_pixel_trace(xvfb, warm_kernels, tmp_path, tea
 
 
 def test_click_on_background_reports_a_miss(xvfb, warm_kernels, tmp_path):
-    dump = tmp_path / "trace.json"
     x, y = BACKGROUND_PIXEL
-    code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--frames", 3000, "--click", f"{x},{y}",
-                                        "--dump-inspector", dump], tmp_path)
-    assert code == 0, err
-    got = json.loads(dump.read_text())
+    got, status = click_and_dump(xvfb, tmp_path, x, y)
     assert got["pixel"] == [x, y] and got["hit"] is False and got["patch"] == -1
     assert status["inspector"]["hit"] is False
 

@@ -12,10 +12,16 @@ from tracer.stats import json_safe
 from .picking import inspection_json
 
 
-def write_png(rgb: np.ndarray, path) -> Path:
-    """(H, W, 3) uint8, row 0 at the top."""
+def _target(path) -> Path:
+    """path as a Path, its folder created."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def write_png(rgb: np.ndarray, path) -> Path:
+    """(H, W, 3) uint8, row 0 at the top."""
+    path = _target(path)
     Image.fromarray(rgb, "RGB").save(path, format="PNG")
     return path
 
@@ -24,8 +30,7 @@ def write_aovs(frame, path) -> Path:
     """The contract's per-pixel arrays of a finished frame (tracer.render.Frame.save_npz)."""
     if frame is None:
         raise ValueError("no finished render to export yet")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    path = _target(path)
     frame.save_npz(path)
     return path
 
@@ -34,7 +39,6 @@ def write_trace(inspection, path) -> Path:
     """The contract's trace JSON of the inspected pixel."""
     if inspection is None:
         raise ValueError("no pixel inspected yet: click the image first")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    path = _target(path)
     path.write_text(json.dumps(json_safe(inspection_json(inspection)), indent=1))
     return path
