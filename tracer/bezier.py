@@ -169,7 +169,7 @@ def control_box_rational(buf, slot, count, box):
         box[slot, 3 + c] = hi + abs(hi) * 2.220446049250313e-16
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _bernstein_row(deg, t, out):
     """Bernstein polynomials B_i^deg(t), i = 0..deg, by the stable triangular recurrence."""
     out[0] = 1.0
@@ -183,7 +183,7 @@ def _bernstein_row(deg, t, out):
         out[k] = saved
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def evaluate(pts, m, n, u, v, ncoord, scratch, out):
     """Point and derivatives of one patch at (u, v), in float64.
 
@@ -227,7 +227,7 @@ def evaluate(pts, m, n, u, v, ncoord, scratch, out):
         out[3, c] = m * n * suv
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def normal_at(pts, m, n, u, v, rational, scratch, d, out):
     """Unit normal dS/du x dS/dv at (u, v) into out (3,), float64.
 

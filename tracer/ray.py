@@ -25,7 +25,7 @@ def _unit(x, y, z):
     return x, y, z
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def make_ray(ray, ox, oy, oz, dx, dy, dz, t_min, t0, dt):
     """Fill a ray record; zero direction components get an infinite inverse (see `slab`)."""
     ray[0] = ox

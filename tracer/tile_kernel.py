@@ -41,15 +41,26 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
     lray = np.zeros(RAY_LEN)
     trim_h = np.zeros((MAX_SPLIT_DEPTH + 4, trim_points, 3))
     trim_m = np.zeros((MAX_SPLIT_DEPTH + 4, 6))
-    domain = trims[1]
     node_stack = np.zeros(stack_nodes, np.int32)
     node_tin = np.zeros(stack_nodes)
-    ray = np.zeros(RAY_LEN)
-    hit = np.zeros(HIT_LEN)
-    pts = np.zeros((4, max_points))
-    scratch = np.zeros((4, max_points))
-    work = np.zeros((6, 4))
-    normal = np.zeros(3)
+    _render_pixels(y0, y1, x0, x1, origins, dirs,
+                   ctrl, pstart, deg_u, deg_v, rational, frame, eps, node_box, node_child, node_patch,
+                   criterion, param, split_mode, max_depth, bits, detail_slope,
+                   trims, leaf_patch, buf, box, mf, mi, order, f32, i32, lray, trim_h, trim_m,
+                   node_stack, node_tin, np.zeros(RAY_LEN), np.zeros(HIT_LEN), np.zeros((4, max_points)),
+                   np.zeros((4, max_points)), np.zeros((6, 4)), np.zeros(3),
+                   out_hit, out_t, out_pos, out_lo, out_hi, out_normal, out_uv, out_patch, out_effort)
+
+
+@njit(cache=True, nogil=True, _nrt=False)  # allocates nothing: no reference counts (see intersect)
+def _render_pixels(y0, y1, x0, x1, origins, dirs,
+                   ctrl, pstart, deg_u, deg_v, rational, frame, eps, node_box, node_child, node_patch,
+                   criterion, param, split_mode, max_depth, bits, detail_slope,
+                   trims, leaf_patch, buf, box, mf, mi, order, f32, i32, lray, trim_h, trim_m,
+                   node_stack, node_tin, ray, hit, pts, scratch, work, normal,
+                   out_hit, out_t, out_pos, out_lo, out_hi, out_normal, out_uv, out_patch, out_effort):
+    """render_tile's pixel loop, on scratch it was given."""
+    domain = trims[1]
     for y in range(y0, y1):
         for x in range(x0, x1):
             dx = dirs[y, x, 0]

@@ -11,7 +11,7 @@ from .intersect import MF_LEN, search_patch
 from .ray import H_PATCH, H_TIN, H_U, H_V, R_D, RAY_LEN, slab
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, eps,
               node_box, node_child, node_patch,
               criterion, param, split_mode, max_depth, bits,
@@ -60,7 +60,7 @@ def trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, eps,
     return effort
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def hit_normal(hit, ctrl, pstart, deg_u, deg_v, rational, ray, pts, scratch, work, out):
     """Unit normal at the hit's (u, v), facing the ray; pts: (4, >= points) float64 scratch,
     scratch: (4, >= max degree + 1), work: (6, 4)."""

@@ -23,7 +23,7 @@ from numba import njit
 MAX_SPLIT_DEPTH = 96  # as tracer.trim: float64 boxes stop shrinking long before this
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _segment_parity(seg_points, first, last, u, v, stack_h, stack_m):
     """0 or 1: parity of the crossings of the ray from (u, v) towards +u with one segment."""
     n = last - first
@@ -88,7 +88,7 @@ def _segment_parity(seg_points, first, last, u, v, stack_h, stack_m):
     return odd
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def trim_inside(surface, u, v, seg_points, seg_start, surf_seg_start, start_inside, stack_h, stack_m):
     """Is (u, v) (surface parameters) in the kept region of `surface`'s trimming loops?"""
     odd = int(start_inside[surface])
