@@ -33,7 +33,8 @@ Scratch (one set per thread), S = max depth + 2 slots:
   mf    (S, 13)   float64         per slot, columns M_*
   mi    (S, 5)    int32           per slot: depth, stalled, last split (0 u, 1 v), trace step,
                                   trim state (0 undecided, 1 wholly in the kept region)
-  order (S,)      int32           stack position -> slot (children swap order without copying)
+  order (S,)      uint32          stack position -> slot (children swap order without copying;
+                                  unsigned, so numba adds no negative-index fix-ups)
   f32   (1,)      float32         with its int32 view i32: rounds to and steps on the float32 grid
 """
 from __future__ import annotations

@@ -35,7 +35,7 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
     box = np.zeros((slots, 6))
     mf = np.zeros((slots, MF_LEN))
     mi = np.zeros((slots, 5), np.int32)
-    order = np.arange(slots).astype(np.int32)
+    order = np.arange(slots).astype(np.uint32)  # unsigned slot indices: no negative-index fix-ups
     f32 = np.zeros(1, np.float32)
     i32 = f32.view(np.int32)
     lray = np.zeros(RAY_LEN)

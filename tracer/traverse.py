@@ -88,5 +88,5 @@ def scratch_for(n_points: int, max_depth: int, dtype):
     slots = max_depth + 2
     f32 = np.zeros(1, np.float32)
     return (np.zeros((slots, 4, n_points), dtype), np.zeros((slots, 6)), np.zeros((slots, MF_LEN)),
-            np.zeros((slots, 5), np.int32), np.arange(slots, dtype=np.int32), f32, f32.view(np.int32),
+            np.zeros((slots, 5), np.int32), np.arange(slots, dtype=np.uint32), f32, f32.view(np.int32),
             np.zeros(RAY_LEN))
