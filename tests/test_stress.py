@@ -21,40 +21,26 @@ import scenes as S
 
 CASES = {c.name: c for c in S.stress_cases()}
 
-_INSIDE = ("kernel: the float32 hit box is a few world ulps wide (median 0.5-6.5 ulps of |p| here) and the ray "
-           "crosses it up to diameter/cos(angle to the normal) away from the true intersection -- every "
-           "reference point lies within that distance of its box -- so a 4-ulp widening misses it; meeting "
-           "the target needs boxes below a world ulp or a final placement of the point on the ray")
-# (scene, check) -> why it fails today: strict xfails, measured against kernel 027fb4a.
-# A kernel change that fixes one turns it into an XPASS failure: then delete the entry.
-KNOWN = {(name, "inside"): _INSIDE for name in CASES if name not in ("teapot +1e4", "lid apex zoom")}
-
-
-def cases(check):
-    return [pytest.param(name, marks=pytest.mark.xfail(strict=True, reason=KNOWN[(name, check)]))
-            if (name, check) in KNOWN else name for name in CASES]
-
-
 @functools.lru_cache(maxsize=None)
 def result(name) -> S.Comparison:
     return S.run_case(CASES[name])
 
 
-@pytest.mark.parametrize("name", cases("holes"))
+@pytest.mark.parametrize("name", list(CASES))
 def test_no_holes_no_false_hits(name, tmp_path):
     cmp = result(name)
     assert cmp.hits > 100
     S.check(cmp, tmp_path, max_ratio=float("inf"), min_inside=0.0)
 
 
-@pytest.mark.parametrize("name", cases("floor"))
+@pytest.mark.parametrize("name", list(CASES))
 def test_mean_error_within_10x_float32_floor(name, tmp_path):
     cmp = result(name)
     assert cmp.hits > 100
     assert cmp.ratio <= 10.0, f"{S.TABLE_HEADER}\n{cmp.row()}"
 
 
-@pytest.mark.parametrize("name", cases("inside"))
+@pytest.mark.parametrize("name", list(CASES))
 def test_reference_inside_widened_float32_box(name, tmp_path):
     cmp = result(name)
     assert cmp.hits > 100

@@ -169,6 +169,44 @@ def control_box_rational(buf, slot, count, box):
         box[slot, 3 + c] = hi + abs(hi) * 2.220446049250313e-16
 
 
+@njit(cache=True, nogil=True, inline='always')
+def _restrict_line(pts, c, first, step, deg, t0, t1):
+    """The control points of one Bezier curve (pts[c, first + i * step], i = 0..deg) restricted to
+    its parameter interval [t0, t1], in place: de Casteljau at t0 keeping the right part, then
+    at (t1 - t0) / (1 - t0) keeping the left part."""
+    if t0 > 0.0:
+        for k in range(1, deg + 1):
+            for i in range(deg - k + 1):
+                a = pts[c, first + i * step]
+                pts[c, first + i * step] = a + t0 * (pts[c, first + (i + 1) * step] - a)
+    if t1 < 1.0:
+        t = (t1 - t0) / (1.0 - t0)
+        for k in range(1, deg + 1):
+            for i in range(deg, k - 1, -1):
+                a = pts[c, first + (i - 1) * step]
+                pts[c, first + i * step] = a + t * (pts[c, first + i * step] - a)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def restrict(pts, m, n, ncoord, u0, u1, v0, v1):
+    """Control points of the sub-patch [u0, u1] x [v0, v1] of the patch in pts (ncoord, points),
+    in place (float64: a handful of roundings per point, see RESTRICT_ERR)."""
+    stride = m + 1
+    for c in range(ncoord):
+        for j in range(n + 1):
+            _restrict_line(pts, c, j * stride, 1, m, u0, u1)
+        for i in range(m + 1):
+            _restrict_line(pts, c, i, stride, n, v0, v1)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def restrict_err(m, n):
+    """Bound on restrict's error relative to the largest |control point|: 2 (m + n) lerps of
+    three roundings each, and the rounded t (the interval moves by a few ulps of the parameter;
+    derivatives are at most 2 m (2 n) times the largest point)."""
+    return (16.0 * (m + n) + 8.0) * 2.0 ** -53
+
+
 @njit(cache=True, nogil=True, _nrt=False)
 def _bernstein_row(deg, t, out):
     """Bernstein polynomials B_i^deg(t), i = 0..deg, by the stable triangular recurrence."""

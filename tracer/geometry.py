@@ -36,6 +36,9 @@ class Geometry:
     rational: np.ndarray  # (n_leaves,) int8: 1 for rational patches
     frame: np.ndarray     # (n_leaves, 3) float64 frame origin of each leaf
     eps: np.ndarray       # (n_leaves, 3) float64 bound on |stored surface - true surface| per axis
+    ctrl64: np.ndarray    # ctrl in float64 (the same array at f64): the kernel re-derives small
+                          # sub-patches from it, so their error shrinks with them (intersect._refine)
+    eps64: np.ndarray     # (n_leaves, 3) float64 the same bound for ctrl64
     leaf_box: np.ndarray  # (n_leaves, 6) float64 tight world boxes (one quad split, padded)
     bvh: Bvh
     leaf_domain: np.ndarray   # (n_leaves, 4) float64 u0 u1 v0 v1: the leaf in its surface's parameters
@@ -183,13 +186,16 @@ def prepare(scene, precision: str = "f32", presplit: int | None = None) -> Geome
     frame = (0.5 * (lo + hi)).astype(np.float32).astype(np.float64)
     local = xyz - frame[patch_of_point]
     homogeneous = np.hstack([local * weight, weight])
-    ctrl = np.ascontiguousarray(homogeneous.T.astype(dtype))
+    ctrl64 = np.ascontiguousarray(homogeneous.T)
+    ctrl = ctrl64 if dtype == np.float64 else np.ascontiguousarray(ctrl64.astype(dtype))
     stored = ctrl.T.astype(np.float64)
     eps = _rounding_bounds(local, weight, stored, patch_of_point, n)
+    eps64 = _rounding_bounds(local, weight, homogeneous, patch_of_point, n)
     if k:  # the float64 pre-split rounded too: a few ulps of the world coordinates
         split_err = np.zeros((n, 3))
         np.maximum.at(split_err, patch_of_point, np.abs(xyz) * (k + 1) * 2.0 ** -52)
         eps = eps + split_err
+        eps64 = eps64 + split_err
     boxes = np.zeros((n, 6))
     for p in range(n):
         a, b = start[p], start[p + 1]
@@ -209,7 +215,7 @@ def prepare(scene, precision: str = "f32", presplit: int | None = None) -> Geome
         domain[:, 2] + leaf_param[:, 2] * (domain[:, 3] - domain[:, 2]),
         domain[:, 2] + leaf_param[:, 3] * (domain[:, 3] - domain[:, 2])])
     return Geometry(precision, ctrl, start, np.asarray(deg_u, np.int32), np.asarray(deg_v, np.int32),
-                    np.asarray(rational, np.int8), frame, eps, boxes, build_bvh(boxes),
+                    np.asarray(rational, np.int8), frame, eps, ctrl64, eps64, boxes, build_bvh(boxes),
                     np.ascontiguousarray(leaf_domain), patch_trim[leaf_patch], trim_arrays,
                     leaf_patch, np.ascontiguousarray(leaf_param, np.float64), k)
 

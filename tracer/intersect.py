@@ -44,7 +44,8 @@ import math
 import numpy as np
 from numba import njit
 
-from .bezier import control_box, control_box_rational, split_u, split_u_cubic, split_v, split_v_cubic
+from .bezier import (control_box, control_box_rational, restrict, restrict_err, split_u, split_u_cubic,
+                     split_v, split_v_cubic)
 from .trim_kernel import rect_meets_loops, trim_inside
 from .ray import (H_DEPTH, H_DU, H_DV, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, R_D, R_DT, R_N1,
                   R_N2, R_O, R_T0, slab)
@@ -64,12 +65,14 @@ M_OX = 8                              # 8, 9, 10: offset, patch frame = local + 
 M_MAG = 11                            # largest |local coordinate| of the box
 M_GULP = 12                           # working-grid ulp at the box's frame magnitude (a bound)
 M_W = 13                              # L1 size of the widening (error bounds) in M_D
-MF_LEN = 14
+M_E = 14                              # 14, 15, 16: bound on |stored - true surface| per axis
+MF_LEN = 17
 # Trace record columns (float64): u0 u1 v0 v1 lo xyz hi xyz diameter; (int32): patch depth event.
 TRACE_F, TRACE_I = 11, 3
 
 RECENTRE = 16.0     # re-centre once the box is this many times smaller than its coordinates
-SUB_ERR_BITS = 8    # subdivision rounding stays below 2^-(bits - 8) of the local magnitude
+REFINE = 64.0       # re-derive from float64 once the data error is over 1/64 of the box
+SUB_ERR_BITS = 8    # rational patches: a split's rounding stays below 2^-(bits - 8) of the magnitude
 GRID_PREFILTER = 64.0  # boxes wider than this many grid ulps certainly still shrink on the grid
 
 
@@ -113,7 +116,7 @@ def _to_working(q, bits, f32):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _widen(box, mf, s, eps, p, sub_scale):
+def _widen(box, mf, s, sub_scale):
     """Widen the raw control box of slot s by the error bounds; sets M_MAG and M_D.
 
     sub_scale = 2^-(bits - SUB_ERR_BITS): the subdivision's rounding relative to the magnitude."""
@@ -124,7 +127,7 @@ def _widen(box, mf, s, eps, p, sub_scale):
     sub = mag * sub_scale
     widening = 0.0
     for c in range(3):
-        e = eps[p, c] + sub
+        e = mf[s, M_E + c] + sub
         box[s, c] -= e
         box[s, 3 + c] += e
         widening += 2.0 * e
@@ -165,9 +168,10 @@ def _raw_box(buf, box, s, count, is_rational):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _recentre(buf, box, mf, s, count, is_rational, f32, eps, p, bits, sub_scale):
+def _recentre(buf, box, mf, s, count, is_rational, f32, bits, sub_scale, round_unit):
     """Shift slot s's control points so its box is centred near 0 (the shift rounded to the
-    working precision: for points close to the shift the subtraction is exact, Sterbenz)."""
+    working precision: for points close to the shift the subtraction is exact, Sterbenz; the
+    others round by at most half an ulp of the result, added to the slot's error bound)."""
     for c in range(3):
         shift = _to_working(0.5 * (box[s, c] + box[s, 3 + c]), bits, f32)
         offset = mf[s, M_OX + c]
@@ -182,11 +186,45 @@ def _recentre(buf, box, mf, s, count, is_rational, f32, eps, p, bits, sub_scale)
                 buf[s, c, k] = float(buf[s, c, k]) - shift
         mf[s, M_OX + c] += shift
     _raw_box(buf, box, s, count, is_rational)
-    _widen(box, mf, s, eps, p, sub_scale)
+    for c in range(3):
+        mf[s, M_E + c] += round_unit * max(abs(box[s, c]), abs(box[s, 3 + c]))
+    _widen(box, mf, s, sub_scale)
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _hull_hit(buf, s, count, is_rational, mf, ray, eps, p, sub_scale):
+def _refine(buf, box, mf, s, m, n, count, ctrl64, start, eps64, p, w64, f32, bits, sub_scale):
+    """Re-derive slot s's (integral) control points from the float64 leaf over its parameter
+    interval, stored relative to a new offset at the box centre: their error bound drops from the
+    leaf's rounding to the sub-patch's own, so the error band no longer outgrows the box.
+
+    Without it, grazing rays meet the band of the float32 leaf data ahead of the true crossing."""
+    for c in range(3):
+        for k in range(count):
+            w64[c, k] = ctrl64[c, start + k]
+    restrict(w64, m, n, 3, mf[s, M_U0], mf[s, M_U1], mf[s, M_V0], mf[s, M_V1])
+    rel = restrict_err(m, n)
+    for c in range(3):
+        lo = math.inf
+        hi = -math.inf
+        big = 0.0
+        for k in range(count):
+            lo = min(lo, w64[c, k])
+            hi = max(hi, w64[c, k])
+            big = max(big, abs(ctrl64[c, start + k]))
+        offset = _to_working(0.5 * (lo + hi), bits, f32)
+        err = 0.0
+        for k in range(count):
+            local = w64[c, k] - offset  # rounds by at most an ulp of itself (counted below)
+            buf[s, c, k] = local
+            err = max(err, abs(np.float64(buf[s, c, k]) - local) + abs(local) * 2.0 ** -52)
+        mf[s, M_OX + c] = offset
+        mf[s, M_E + c] = err + big * rel + eps64[p, c]
+    _raw_box(buf, box, s, count, False)
+    _widen(box, mf, s, sub_scale)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _hull_hit(buf, s, count, is_rational, mf, ray, sub_scale):
     """Does the ray meet the convex hull of slot s's control points (widened by the error
     bounds)? Tested as the hull's extent across two planes that meet in the ray, so a ray
     clipping a corner of a thin, tilted sub-patch's box is not taken for a hit."""
@@ -209,7 +247,8 @@ def _hull_hit(buf, s, count, is_rational, mf, ray, eps, p, sub_scale):
             dist = x * n0 + y * n1 + z * n2
             lo = min(lo, dist)
             hi = max(hi, dist)
-        slack = ((eps[p, 0] + sub) * abs(n0) + (eps[p, 1] + sub) * abs(n1) + (eps[p, 2] + sub) * abs(n2)
+        slack = ((mf[s, M_E] + sub) * abs(n0) + (mf[s, M_E + 1] + sub) * abs(n1)
+                 + (mf[s, M_E + 2] + sub) * abs(n2)
                  + 2.0 ** -51 * (abs(rel0) + abs(rel1) + abs(rel2) + max(abs(lo), abs(hi))))
         if offset + lo > slack or offset + hi < -slack:
             return False
@@ -316,15 +355,18 @@ def _report(hit, box, mf, a, p, depth, bits, f32, i32, frame):
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ray, hit,
+def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, eps64, ray, hit,
                  criterion, param, split_mode, max_depth, bits,
-                 buf, box, mf, mi, order, f32, i32, lray, trims, trim_h, trim_m, trace):
+                 buf, box, mf, mi, order, f32, i32, lray, w64, trims, trim_h, trim_m, trace):
     """Closest intersection of `ray` with patch p beyond t_min and before hit[H_TIN].
 
     Updates `hit` when a closer hit box is found; returns the number of boxes computed.
     ctrl: (4, total points) working dtype, local to frame[p] (float64 (n_patches, 3)); row 3
     holds the weights, rows 0-2 are premultiplied by them for rational[p] patches.
     eps: (n_patches, 3) float64 bound of the stored points' rounding error per axis.
+    ctrl64, eps64: the same points in float64 and their error bound; in working precisions below
+    float64, sub-patches whose error band grows over 1/REFINE of their box are re-derived from them
+    (w64: (4, points) float64 scratch).
     criterion/param: FLOAT (-), FIXED (L1 size), ADAPTIVE (uses the ray's T0, dT),
     MANTISSA (ulps); every criterion also stops when the box stops shrinking.
     bits: mantissa bits of the working dtype (24 or 53). lray: scratch ray record (the ray in
@@ -355,16 +397,24 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ray, hit,
     mf[s, M_DPAR] = math.inf
     for c in range(3):
         mf[s, M_OX + c] = 0.0
+        mf[s, M_E + c] = eps[p, c]
     mi[s, 0] = 0
     mi[s, 1] = 0
     mi[s, 2] = -1
     mi[s, 4] = 0
     surface = trims[0][p]
     dom = trims[1]
-    sub_scale = math.ldexp(1.0, SUB_ERR_BITS - bits)
+    # Below float64, integral patches carry their subdivision rounding in the slot's error bound
+    # (M_E), level by level (round_unit: a rounding moves a value by at most this much of it).
+    # Rational patches (homogeneous, quotients in the box) and float64, the reference, are widened
+    # by sub_scale of the current magnitude instead: float64's early roundings (~1e-16 of the leaf)
+    # are far below anything it is compared with, and carrying them would stop it 100x sooner.
+    cumulative = bits < 53 and not is_rational
+    sub_scale = 0.0 if cumulative else math.ldexp(1.0, SUB_ERR_BITS - bits)
+    round_unit = math.ldexp(1.0, -bits) if cumulative else 0.0
     shrink_factor = 1.0 - math.ldexp(1.0, 4 - bits)  # a real decrease: more than 16 ulps
     _raw_box(buf, box, s, count, is_rational)
-    _widen(box, mf, s, eps, p, sub_scale)
+    _widen(box, mf, s, sub_scale)
     frame_mag = 0.0
     for k in range(6):
         frame_mag = max(frame_mag, abs(box[s, k]))
@@ -420,7 +470,7 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ray, hit,
         if stop:
             # At the depth cap the precision is spent: accept rather than reject (a rejection
             # there would send the search through every branch down to the cap).
-            found = depth >= max_depth or _hull_hit(buf, a, count, is_rational, mf, ray, eps, p, sub_scale)
+            found = depth >= max_depth or _hull_hit(buf, a, count, is_rational, mf, ray, sub_scale)
             if found and surface >= 0 and mi[a, 4] == 0:
                 u = dom[p, 0] + 0.5 * (mf[a, M_U0] + mf[a, M_U1]) * (dom[p, 1] - dom[p, 0])
                 v = dom[p, 2] + 0.5 * (mf[a, M_V0] + mf[a, M_V1]) * (dom[p, 3] - dom[p, 2])
@@ -435,13 +485,21 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ray, hit,
                     trace[2][2] = mi[a, 3]  # steps are in creation order; this one is reported
             continue
         ext = max(box[a, 3] - box[a, 0], box[a, 4] - box[a, 1], box[a, 5] - box[a, 2])
-        if ext * RECENTRE < mf[a, M_MAG]:
-            _recentre(buf, box, mf, a, count, is_rational, f32, eps, p, bits, sub_scale)
+        if cumulative and (mf[a, M_E] + mf[a, M_E + 1] + mf[a, M_E + 2]) * REFINE > ext:
+            _refine(buf, box, mf, a, m, n, count, ctrl64, start, eps64, p, w64, f32, bits, sub_scale)
+        elif ext * RECENTRE < mf[a, M_MAG]:
+            _recentre(buf, box, mf, a, count, is_rational, f32, bits, sub_scale, round_unit)
         if shrank:
             direction = _split_direction(buf, a, m, n, count, ray, split_mode, is_rational)
         else:
             direction = 1 - mi[a, 2] if mi[a, 2] >= 0 else 0
         b = order[sp + 1]
+        # Each of the split's de Casteljau levels rounds a point by at most half an ulp of the
+        # largest coordinate, and the errors of earlier levels stay in the points.
+        levels = (m if direction == 0 else n) * round_unit
+        for c in range(3):
+            mf[b, M_E + c] = mf[a, M_E + c] + levels * max(abs(box[a, c]), abs(box[a, 3 + c]))
+            mf[a, M_E + c] = mf[b, M_E + c]
         if cubic:
             if direction == 0:
                 split_u_cubic(buf, a, b, box)
@@ -470,7 +528,7 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ray, hit,
         stalled = 0 if shrank else 1
         mi[b, 4] = mi[a, 4]
         for child in (a, b):
-            _widen(box, mf, child, eps, p, sub_scale)
+            _widen(box, mf, child, sub_scale)
             mf[child, M_DPAR] = d_crit
             mi[child, 0] = depth + 1
             mi[child, 1] = stalled
