@@ -3,6 +3,7 @@
 Seeded random cases, many per test; grids P[i, j, xyz] in the references, the kernels'
 slot buffers buf[slot, xyz, k] with k = j*(m+1) + i.
 """
+import functools
 import inspect
 import math
 
@@ -53,17 +54,20 @@ def _takes_box(fn):
     return "box" in inspect.signature(fn.py_func).parameters
 
 
-def kernel_split(P, axis, dtype, cubic=False):
-    """Split grid P at 1/2 with the kernel: (lower half, upper half, boxes written or None)."""
+FAST_SPLITS = {(3, 3): (bezier.split_u_cubic, bezier.split_v_cubic),
+               (1, 1): (bezier.split_u_linear, bezier.split_v_linear)}
+
+
+def kernel_split(P, axis, dtype, fast=False):
+    """Split grid P at 1/2 with the kernel: (lower half, upper half, boxes written or None);
+    fast: the degree's specialised split (bicubic, bilinear) instead of the generic one."""
     m, n = P.shape[0] - 1, P.shape[1] - 1
     buf = to_buf(P, dtype)
     box = np.full((2, 6), np.nan)
-    if cubic:
-        fn = bezier.split_u_cubic if axis == 0 else bezier.split_v_cubic
-    else:
-        fn = split_u if axis == 0 else split_v
+    fast = fast and (m, n) in FAST_SPLITS
+    fn = FAST_SPLITS[(m, n)][axis] if fast else (split_u if axis == 0 else split_v)
     call(fn, buf=buf, src=0, dst=1, m=m, n=n, ncoord=3, box=box)
-    written = box if cubic and _takes_box(fn) else None  # newer kernels box the halves as they split
+    written = box if fast and _takes_box(fn) else None  # the fast splits box the halves as they split
     return from_buf(buf, 0, m, n), from_buf(buf, 1, m, n), written
 
 
@@ -156,13 +160,15 @@ def test_split_error_within_level_ulps(dtype):
 
 @pytest.mark.parametrize("dtype", DTYPES)
 @pytest.mark.parametrize("axis", [0, 1])
-def test_cubic_split_bit_identical_to_generic(dtype, axis):
+@pytest.mark.parametrize("degree", list(FAST_SPLITS))
+def test_fast_split_bit_identical_to_generic(dtype, axis, degree):
     rng = np.random.default_rng(40 + axis)
+    shape = (degree[0] + 1, degree[1] + 1, 3)
     for case in range(200):
-        spread = 10.0 ** rng.uniform(-6, 6, (4, 4, 3))  # mixed magnitudes stress the rounding
-        P = (rng.uniform(-1, 1, (4, 4, 3)) * spread).astype(dtype).astype(np.float64)
+        spread = 10.0 ** rng.uniform(-6, 6, shape)  # mixed magnitudes stress the rounding
+        P = (rng.uniform(-1, 1, shape) * spread).astype(dtype).astype(np.float64)
         glo, ghi, _ = kernel_split(P, axis, dtype)
-        clo, chi, box = kernel_split(P, axis, dtype, cubic=True)
+        clo, chi, box = kernel_split(P, axis, dtype, fast=True)
         assert np.array_equal(glo, clo) and np.array_equal(ghi, chi), f"case {case}"
         if box is not None:  # the boxes written during the split are those of the halves
             assert np.array_equal(box[0], ref.box(glo)), f"case {case}: lower box"
@@ -183,12 +189,64 @@ def test_sub_patch_boxes_inside_parent(dtype, degree):
         for level in range(depth):
             parent = ref.box(P)
             axis = int(rng.integers(2))
-            halves = kernel_split(P, axis, dtype, cubic=degree == (3, 3))[:2]
+            halves = kernel_split(P, axis, dtype, fast=True)[:2]
             for h in halves:
                 child = kernel_box(h, dtype)
                 assert np.all(child[:3] >= parent[:3]) and np.all(child[3:] <= parent[3:]), (
                     f"trial {trial} level {level}: child box {child} outside parent {parent}")
             P = halves[int(rng.integers(2))]
+
+
+def _exact_restrict(line, t0, t1):
+    """A curve's control points restricted to [t0, t1], in exact rationals (blossoms: point i
+    is B(t0, .., t0, t1, .., t1) with i arguments t1)."""
+    deg = len(line) - 1
+    out = []
+    for i in range(deg + 1):
+        pts = list(line)
+        for t in [t0] * (deg - i) + [t1] * i:
+            pts = [a + t * (b - a) for a, b in zip(pts[:-1], pts[1:])]
+        out.append(pts[0])
+    return out
+
+
+@pytest.mark.parametrize("degree", [(1, 1), (3, 3), (2, 5), (4, 1)])
+def test_restrict_within_its_bound(degree):
+    """bezier.restrict (float64, in place) gives the sub-patch over [u0, u1] x [v0, v1] within
+    restrict_err of the largest point, against exact rational arithmetic."""
+    from fractions import Fraction
+    m, n = degree
+    rng = np.random.default_rng(80 + 8 * m + n)
+    for case in range(4):
+        P = rng.uniform(-1, 1, (m + 1, n + 1, 3)) * 10.0 ** rng.uniform(-3, 3)
+        u0, u1 = np.sort(rng.uniform(0, 1, 2))
+        v0, v1 = np.sort(rng.uniform(0, 1, 2))
+        if case == 0:
+            u0, v1 = 0.0, 1.0  # one end of each interval kept
+        pts = np.ones((4, (m + 1) * (n + 1)))
+        pts[:3] = ref.flat(P).T
+        _restrict_kernel()(pts, m, n, u0, u1, v0, v1)
+        bound = bezier.restrict_err(m, n) * np.abs(P).max()
+        F = [[[Fraction(float(x)) for x in P[i, j]] for j in range(n + 1)] for i in range(m + 1)]
+        fu0, fu1, fv0, fv1 = map(Fraction, (float(u0), float(u1), float(v0), float(v1)))
+        for c in range(3):
+            rows = [_exact_restrict([F[i][j][c] for i in range(m + 1)], fu0, fu1) for j in range(n + 1)]
+            grid = [_exact_restrict([rows[j][i] for j in range(n + 1)], fv0, fv1) for i in range(m + 1)]
+            for j in range(n + 1):
+                for i in range(m + 1):
+                    err = abs(float(Fraction(float(pts[c, j * (m + 1) + i])) - grid[i][j]))
+                    assert err <= bound, f"case {case}: point ({i}, {j}) off by {err:.3g} > {bound:.3g}"
+
+
+@functools.lru_cache(maxsize=None)
+def _restrict_kernel():
+    """restrict is inlined into the search; a small wrapper calls it from Python."""
+    from numba import njit
+
+    @njit(cache=False)
+    def run(pts, m, n, u0, u1, v0, v1):
+        bezier.restrict(pts, m, n, 3, u0, u1, v0, v1)
+    return run
 
 
 @pytest.mark.parametrize("dtype", DTYPES)

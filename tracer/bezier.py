@@ -132,6 +132,50 @@ def split_v_cubic(buf, src, dst, box):
 
 
 @njit(cache=True, nogil=True, inline='always')
+def split_u_linear(buf, src, dst, box):
+    """split_u for bilinear patches (points P00 P10 P01 P11), with both halves' boxes."""
+    for c in range(3):
+        p00 = buf[src, c, 0]
+        p10 = buf[src, c, 1]
+        p01 = buf[src, c, 2]
+        p11 = buf[src, c, 3]
+        m0 = (p00 + p10) * HALF
+        m1 = (p01 + p11) * HALF
+        buf[src, c, 1] = m0
+        buf[src, c, 3] = m1
+        buf[dst, c, 0] = m0
+        buf[dst, c, 1] = p10
+        buf[dst, c, 2] = m1
+        buf[dst, c, 3] = p11
+        box[src, c] = min(p00, m0, p01, m1)
+        box[src, 3 + c] = max(p00, m0, p01, m1)
+        box[dst, c] = min(m0, p10, m1, p11)
+        box[dst, 3 + c] = max(m0, p10, m1, p11)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def split_v_linear(buf, src, dst, box):
+    """split_v for bilinear patches, with both halves' boxes."""
+    for c in range(3):
+        p00 = buf[src, c, 0]
+        p10 = buf[src, c, 1]
+        p01 = buf[src, c, 2]
+        p11 = buf[src, c, 3]
+        m0 = (p00 + p01) * HALF
+        m1 = (p10 + p11) * HALF
+        buf[src, c, 2] = m0
+        buf[src, c, 3] = m1
+        buf[dst, c, 0] = m0
+        buf[dst, c, 1] = m1
+        buf[dst, c, 2] = p01
+        buf[dst, c, 3] = p11
+        box[src, c] = min(p00, p10, m0, m1)
+        box[src, 3 + c] = max(p00, p10, m0, m1)
+        box[dst, c] = min(m0, m1, p01, p11)
+        box[dst, 3 + c] = max(m0, m1, p01, p11)
+
+
+@njit(cache=True, nogil=True, inline='always')
 def control_box(buf, slot, count, box):
     """Write the axis-aligned box of the first `count` control points of `slot` into box[slot].
 

@@ -45,7 +45,7 @@ import numpy as np
 from numba import njit
 
 from .bezier import (control_box, control_box_rational, restrict, restrict_err, split_u, split_u_cubic,
-                     split_v, split_v_cubic)
+                     split_u_linear, split_v, split_v_cubic, split_v_linear)
 from .trim_kernel import rect_meets_loops, trim_inside
 from .ray import (H_DEPTH, H_DU, H_DV, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, R_D, R_DT, R_N1,
                   R_N2, R_O, R_T0, slab)
@@ -380,6 +380,7 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, ep
     is_rational = rational[p] != 0
     ncoord = 4 if is_rational else 3
     cubic = m == 3 and n == 3 and not is_rational
+    linear = m == 1 and n == 1 and not is_rational
     start = pstart[p]
     for k in range(lray.shape[0]):
         lray[k] = ray[k]
@@ -505,6 +506,11 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, ep
                 split_u_cubic(buf, a, b, box)
             else:
                 split_v_cubic(buf, a, b, box)
+        elif linear:
+            if direction == 0:
+                split_u_linear(buf, a, b, box)
+            else:
+                split_v_linear(buf, a, b, box)
         else:
             if direction == 0:
                 split_u(buf, a, b, m, n, ncoord)
