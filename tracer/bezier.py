@@ -132,47 +132,38 @@ def split_v_cubic(buf, src, dst, box):
 
 
 @njit(cache=True, nogil=True, inline='always')
+def _split_linear(buf, src, dst, box, a0, a1, b0, b1):
+    """Halve a bilinear patch between its point pairs (a0, a1) and (b0, b1): src keeps the a0, b0
+    half, dst gets the other; both halves' boxes are written as they are formed."""
+    for c in range(3):
+        pa0 = buf[src, c, a0]
+        pa1 = buf[src, c, a1]
+        pb0 = buf[src, c, b0]
+        pb1 = buf[src, c, b1]
+        m0 = (pa0 + pa1) * HALF
+        m1 = (pb0 + pb1) * HALF
+        buf[src, c, a1] = m0
+        buf[src, c, b1] = m1
+        buf[dst, c, a0] = m0
+        buf[dst, c, a1] = pa1
+        buf[dst, c, b0] = m1
+        buf[dst, c, b1] = pb1
+        box[src, c] = min(pa0, m0, pb0, m1)
+        box[src, 3 + c] = max(pa0, m0, pb0, m1)
+        box[dst, c] = min(m0, pa1, m1, pb1)
+        box[dst, 3 + c] = max(m0, pa1, m1, pb1)
+
+
+@njit(cache=True, nogil=True, inline='always')
 def split_u_linear(buf, src, dst, box):
     """split_u for bilinear patches (points P00 P10 P01 P11), with both halves' boxes."""
-    for c in range(3):
-        p00 = buf[src, c, 0]
-        p10 = buf[src, c, 1]
-        p01 = buf[src, c, 2]
-        p11 = buf[src, c, 3]
-        m0 = (p00 + p10) * HALF
-        m1 = (p01 + p11) * HALF
-        buf[src, c, 1] = m0
-        buf[src, c, 3] = m1
-        buf[dst, c, 0] = m0
-        buf[dst, c, 1] = p10
-        buf[dst, c, 2] = m1
-        buf[dst, c, 3] = p11
-        box[src, c] = min(p00, m0, p01, m1)
-        box[src, 3 + c] = max(p00, m0, p01, m1)
-        box[dst, c] = min(m0, p10, m1, p11)
-        box[dst, 3 + c] = max(m0, p10, m1, p11)
+    _split_linear(buf, src, dst, box, 0, 1, 2, 3)
 
 
 @njit(cache=True, nogil=True, inline='always')
 def split_v_linear(buf, src, dst, box):
     """split_v for bilinear patches, with both halves' boxes."""
-    for c in range(3):
-        p00 = buf[src, c, 0]
-        p10 = buf[src, c, 1]
-        p01 = buf[src, c, 2]
-        p11 = buf[src, c, 3]
-        m0 = (p00 + p01) * HALF
-        m1 = (p10 + p11) * HALF
-        buf[src, c, 2] = m0
-        buf[src, c, 3] = m1
-        buf[dst, c, 0] = m0
-        buf[dst, c, 1] = m1
-        buf[dst, c, 2] = p01
-        buf[dst, c, 3] = p11
-        box[src, c] = min(p00, p10, m0, m1)
-        box[src, 3 + c] = max(p00, p10, m0, m1)
-        box[dst, c] = min(m0, m1, p01, p11)
-        box[dst, 3 + c] = max(m0, m1, p01, p11)
+    _split_linear(buf, src, dst, box, 0, 2, 1, 3)
 
 
 @njit(cache=True, nogil=True, inline='always')
