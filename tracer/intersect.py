@@ -549,6 +549,17 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, ep
         near = a if near_a else b
         alive_far = alive_b if near_a else alive_a
         alive_near = alive_a if near_a else alive_b
+        if alive_far and alive_near:
+            # The ray meets both boxes: the control hulls (across two planes through the ray)
+            # are much thinner than the boxes, and one of them usually misses (a side branch saved).
+            if not _hull_hit(buf, far, count, is_rational, mf, ray, sub_scale):
+                alive_far = 0
+                if trace is not None:
+                    _set_event(trace, mi[far, 3], MISS)
+            elif not _hull_hit(buf, near, count, is_rational, mf, ray, sub_scale):
+                alive_near = 0
+                if trace is not None:
+                    _set_event(trace, mi[near, 3], MISS)
         order[sp] = far if alive_far else near
         order[sp + 1] = near if alive_far else far
         sp += alive_far + alive_near
