@@ -223,10 +223,49 @@ def _restrict_line(pts, c, first, step, deg, t0, t1):
 
 
 @njit(cache=True, nogil=True, inline='always')
+def _restrict_cubic_line(pts, c, first, step, t0, t1):
+    """_restrict_line for degree 3, unrolled (the same lerps in the same order)."""
+    p0 = pts[c, first]
+    p1 = pts[c, first + step]
+    p2 = pts[c, first + 2 * step]
+    p3 = pts[c, first + 3 * step]
+    if t0 > 0.0:  # right part at t0: [c0, b1, a2, p3]
+        a0 = p0 + t0 * (p1 - p0)
+        a1 = p1 + t0 * (p2 - p1)
+        a2 = p2 + t0 * (p3 - p2)
+        b0 = a0 + t0 * (a1 - a0)
+        b1 = a1 + t0 * (a2 - a1)
+        p0 = b0 + t0 * (b1 - b0)
+        p1 = b1
+        p2 = a2
+    if t1 < 1.0:  # left part at t: [p0, d0, e0, f0]
+        t = (t1 - t0) / (1.0 - t0)
+        d0 = p0 + t * (p1 - p0)
+        d1 = p1 + t * (p2 - p1)
+        d2 = p2 + t * (p3 - p2)
+        e0 = d0 + t * (d1 - d0)
+        e1 = d1 + t * (d2 - d1)
+        p3 = e0 + t * (e1 - e0)
+        p1 = d0
+        p2 = e0
+    pts[c, first] = p0
+    pts[c, first + step] = p1
+    pts[c, first + 2 * step] = p2
+    pts[c, first + 3 * step] = p3
+
+
+@njit(cache=True, nogil=True, inline='always')
 def restrict(pts, m, n, ncoord, u0, u1, v0, v1):
     """Control points of the sub-patch [u0, u1] x [v0, v1] of the patch in pts (ncoord, points),
     in place (float64: a handful of roundings per point, see RESTRICT_ERR)."""
     stride = m + 1
+    if m == 3 and n == 3:
+        for c in range(ncoord):
+            for j in range(4):
+                _restrict_cubic_line(pts, c, 4 * j, 1, u0, u1)
+            for i in range(4):
+                _restrict_cubic_line(pts, c, i, 4, v0, v1)
+        return
     for c in range(ncoord):
         for j in range(n + 1):
             _restrict_line(pts, c, j * stride, 1, m, u0, u1)
