@@ -223,31 +223,29 @@ def _restrict_line(pts, c, first, step, deg, t0, t1):
 
 
 @njit(cache=True, nogil=True, inline='always')
+def _casteljau3(p0, p1, p2, p3, t):
+    """de Casteljau's triangle of one cubic at t: (a0, a2, b0, b1, c0) of levels 1, 2, 3."""
+    a0 = p0 + t * (p1 - p0)
+    a1 = p1 + t * (p2 - p1)
+    a2 = p2 + t * (p3 - p2)
+    b0 = a0 + t * (a1 - a0)
+    b1 = a1 + t * (a2 - a1)
+    return a0, a2, b0, b1, b0 + t * (b1 - b0)
+
+
+@njit(cache=True, nogil=True, inline='always')
 def _restrict_cubic_line(pts, c, first, step, t0, t1):
     """_restrict_line for degree 3, unrolled (the same lerps in the same order)."""
     p0 = pts[c, first]
     p1 = pts[c, first + step]
     p2 = pts[c, first + 2 * step]
     p3 = pts[c, first + 3 * step]
-    if t0 > 0.0:  # right part at t0: [c0, b1, a2, p3]
-        a0 = p0 + t0 * (p1 - p0)
-        a1 = p1 + t0 * (p2 - p1)
-        a2 = p2 + t0 * (p3 - p2)
-        b0 = a0 + t0 * (a1 - a0)
-        b1 = a1 + t0 * (a2 - a1)
-        p0 = b0 + t0 * (b1 - b0)
-        p1 = b1
-        p2 = a2
-    if t1 < 1.0:  # left part at t: [p0, d0, e0, f0]
-        t = (t1 - t0) / (1.0 - t0)
-        d0 = p0 + t * (p1 - p0)
-        d1 = p1 + t * (p2 - p1)
-        d2 = p2 + t * (p3 - p2)
-        e0 = d0 + t * (d1 - d0)
-        e1 = d1 + t * (d2 - d1)
-        p3 = e0 + t * (e1 - e0)
-        p1 = d0
-        p2 = e0
+    if t0 > 0.0:  # the right part at t0
+        _, a2, _, b1, c0 = _casteljau3(p0, p1, p2, p3, t0)
+        p0, p1, p2 = c0, b1, a2
+    if t1 < 1.0:  # the left part at t
+        a0, _, b0, _, c0 = _casteljau3(p0, p1, p2, p3, (t1 - t0) / (1.0 - t0))
+        p1, p2, p3 = a0, b0, c0
     pts[c, first] = p0
     pts[c, first + step] = p1
     pts[c, first + 2 * step] = p2
