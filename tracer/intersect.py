@@ -8,10 +8,12 @@ nearer half is visited first, so a hit shortens the ray and prunes the rest.
 Where the arithmetic happens: control points are stored in the working dtype
 relative to their patch's frame, and a sub-patch is re-centred on its own box
 once the box is much smaller than its coordinates, so midpoints round relative
-to the box, not to the object or the world origin. Every box is widened by the
-rounding error of the stored control points (exact, measured at load) plus a
-bound on the subdivision's own rounding: it contains the true surface, so
-neighbouring patches cannot leave a crack whatever their frames. The search
+to the box, not to the object or the world origin. Every box is widened by its
+sub-patch's error bound (M_E): the rounding of the stored control points (exact,
+measured at load) plus that of every split and re-centring on the way down, so it
+contains the true surface and neighbouring patches cannot leave a crack whatever
+their frames. A sub-patch whose bound grows past 1/REFINE of its box is re-derived
+from the float64 leaf (_refine), which resets the bound to its own rounding. The search
 runs in the patch's frame (the ray origin is moved there once, in float64);
 ray-box slabs run in float64 on frame-relative = local + offset.
 
@@ -30,7 +32,7 @@ inlined helpers, inside the loop (a fifth of the search time).
 Scratch (one set per thread), S = max depth + 2 slots:
   buf   (S, 4, P) working dtype   control points per slot (row 3: weights of rational patches)
   box   (S, 6)    float64         widened local box per slot: lo xyz, hi xyz
-  mf    (S, 13)   float64         per slot, columns M_*
+  mf    (S, 17)   float64         per slot, columns M_*
   mi    (S, 5)    int32           per slot: depth, stalled, last split (0 u, 1 v), trace step,
                                   trim state (0 undecided, 1 wholly in the kept region)
   order (S,)      uint32          stack position -> slot (children swap order without copying;
