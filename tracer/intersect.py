@@ -119,9 +119,10 @@ def _to_working(q, bits, f32):
 
 @njit(cache=True, nogil=True, inline='always')
 def _widen(box, mf, s, sub_scale):
-    """Widen the raw control box of slot s by the error bounds; sets M_MAG and M_D.
+    """Widen the raw control box of slot s by its error bound (M_E); sets M_MAG, M_W and M_D.
 
-    sub_scale = 2^-(bits - SUB_ERR_BITS): the subdivision's rounding relative to the magnitude."""
+    sub_scale: 0 where M_E carries the subdivision's rounding (float32, integral patches), else
+    2^-(bits - SUB_ERR_BITS), a per-level bound relative to the magnitude."""
     mag = 0.0
     for k in range(6):
         mag = max(mag, abs(box[s, k]))
