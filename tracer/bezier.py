@@ -255,7 +255,7 @@ def _restrict_cubic_line(pts, c, first, step, t0, t1):
 @njit(cache=True, nogil=True, inline='always')
 def restrict(pts, m, n, ncoord, u0, u1, v0, v1):
     """Control points of the sub-patch [u0, u1] x [v0, v1] of the patch in pts (ncoord, points),
-    in place (float64: a handful of roundings per point, see RESTRICT_ERR)."""
+    in place (float64: a handful of roundings per point, see restrict_err)."""
     stride = m + 1
     if m == 3 and n == 3:
         for c in range(ncoord):

@@ -195,7 +195,7 @@ def _recentre(buf, box, mf, s, count, is_rational, f32, bits, sub_scale, round_u
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _refine(buf, box, mf, s, m, n, count, ctrl64, start, eps64, p, w64, f32, bits, sub_scale):
+def _refine(buf, box, mf, s, m, n, count, ctrl64, start, eps64, p, w64, f32, bits):
     """Re-derive slot s's (integral) control points from the float64 leaf over its parameter
     interval, stored relative to a new offset at the box centre: their error bound drops from the
     leaf's rounding to the sub-patch's own, so the error band no longer outgrows the box.
@@ -223,7 +223,7 @@ def _refine(buf, box, mf, s, m, n, count, ctrl64, start, eps64, p, w64, f32, bit
         mf[s, M_OX + c] = offset
         mf[s, M_E + c] = err + big * rel + eps64[p, c]
     _raw_box(buf, box, s, count, False)
-    _widen(box, mf, s, sub_scale)
+    _widen(box, mf, s, 0.0)  # the bound carries every rounding (float32, integral: see search_patch)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -490,7 +490,7 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, ep
             continue
         ext = max(box[a, 3] - box[a, 0], box[a, 4] - box[a, 1], box[a, 5] - box[a, 2])
         if cumulative and (mf[a, M_E] + mf[a, M_E + 1] + mf[a, M_E + 2]) * REFINE > ext:
-            _refine(buf, box, mf, a, m, n, count, ctrl64, start, eps64, p, w64, f32, bits, sub_scale)
+            _refine(buf, box, mf, a, m, n, count, ctrl64, start, eps64, p, w64, f32, bits)
         elif ext * RECENTRE < mf[a, M_MAG]:
             _recentre(buf, box, mf, a, count, is_rational, f32, bits, sub_scale, round_unit)
         if shrank:
@@ -555,14 +555,15 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, ep
         if alive_far and alive_near:
             # The ray meets both boxes: the control hulls (across two planes through the ray)
             # are much thinner than the boxes, and one of them usually misses (a side branch saved).
+            dropped = -1
             if not _hull_hit(buf, far, count, is_rational, mf, ray, sub_scale):
                 alive_far = 0
-                if trace is not None:
-                    _set_event(trace, mi[far, 3], MISS)
+                dropped = far
             elif not _hull_hit(buf, near, count, is_rational, mf, ray, sub_scale):
                 alive_near = 0
-                if trace is not None:
-                    _set_event(trace, mi[near, 3], MISS)
+                dropped = near
+            if trace is not None and dropped >= 0:
+                _set_event(trace, mi[dropped, 3], MISS)
         order[sp] = far if alive_far else near
         order[sp + 1] = near if alive_far else far
         sp += alive_far + alive_near
