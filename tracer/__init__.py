@@ -24,7 +24,7 @@ def _configure_numba_cache() -> None:
     digest = hashlib.sha1()
     for path in sorted(Path(__file__).parent.rglob("*.py")):
         source = path.read_bytes()
-        if b"@njit" in source:  # only kernel modules decide what machine code is valid
+        if b"from numba" in source:  # only kernel modules decide what machine code is valid
             digest.update(path.name.encode())
             digest.update(source)
     key = "psrt-" + digest.hexdigest()[:12]

@@ -16,6 +16,8 @@ import math
 import numpy as np
 from numba import njit
 
+from . import simd
+
 # float32 so float32 midpoints stay float32 (no widening round trip); exact in float64 too.
 HALF = np.float32(0.5)
 
@@ -58,77 +60,15 @@ def split_v(buf, src, dst, m, n, ncoord):
 
 @njit(cache=True, nogil=True, inline='always')
 def split_u_cubic(buf, src, dst, box):
-    """split_u for bicubic patches, also writing both halves' control boxes into box[src], box[dst].
-
-    Constant trip counts let the compiler unroll; boxes come from the fresh points in registers.
-    """
-    for c in range(3):
-        a = buf[src, c]
-        r = buf[dst, c]
-        llo = lhi = a[0]  # P[0][0] stays in the left half, P[3][0] in the right
-        rlo = rhi = a[3]
-        for b in range(0, 16, 4):
-            p0 = a[b]
-            p1 = a[b + 1]
-            p2 = a[b + 2]
-            p3 = a[b + 3]
-            q0 = (p0 + p1) * HALF
-            q1 = (p1 + p2) * HALF
-            q2 = (p2 + p3) * HALF
-            s0 = (q0 + q1) * HALF
-            s1 = (q1 + q2) * HALF
-            mid = (s0 + s1) * HALF
-            a[b + 1] = q0
-            a[b + 2] = s0
-            a[b + 3] = mid
-            r[b] = mid
-            r[b + 1] = s1
-            r[b + 2] = q2
-            r[b + 3] = p3
-            llo = min(llo, p0, q0, s0, mid)
-            lhi = max(lhi, p0, q0, s0, mid)
-            rlo = min(rlo, mid, s1, q2, p3)
-            rhi = max(rhi, mid, s1, q2, p3)
-        box[src, c] = llo
-        box[src, 3 + c] = lhi
-        box[dst, c] = rlo
-        box[dst, 3 + c] = rhi
+    """split_u for bicubic patches, also writing both halves' control boxes into box[src], box[dst]
+    (in 4-wide vectors: see simd)."""
+    simd.split_u_cubic(buf, src, dst, box)
 
 
 @njit(cache=True, nogil=True, inline='always')
 def split_v_cubic(buf, src, dst, box):
     """split_v for bicubic patches, with both halves' boxes (see split_u_cubic)."""
-    for c in range(3):
-        a = buf[src, c]
-        r = buf[dst, c]
-        llo = lhi = a[0]  # P[0][0] stays in the lower half, P[0][3] in the upper
-        rlo = rhi = a[12]
-        for i in range(4):
-            p0 = a[i]
-            p1 = a[4 + i]
-            p2 = a[8 + i]
-            p3 = a[12 + i]
-            q0 = (p0 + p1) * HALF
-            q1 = (p1 + p2) * HALF
-            q2 = (p2 + p3) * HALF
-            s0 = (q0 + q1) * HALF
-            s1 = (q1 + q2) * HALF
-            mid = (s0 + s1) * HALF
-            a[4 + i] = q0
-            a[8 + i] = s0
-            a[12 + i] = mid
-            r[i] = mid
-            r[4 + i] = s1
-            r[8 + i] = q2
-            r[12 + i] = p3
-            llo = min(llo, p0, q0, s0, mid)
-            lhi = max(lhi, p0, q0, s0, mid)
-            rlo = min(rlo, mid, s1, q2, p3)
-            rhi = max(rhi, mid, s1, q2, p3)
-        box[src, c] = llo
-        box[src, 3 + c] = lhi
-        box[dst, c] = rlo
-        box[dst, 3 + c] = rhi
+    simd.split_v_cubic(buf, src, dst, box)
 
 
 @njit(cache=True, nogil=True, inline='always')

@@ -1,0 +1,123 @@
+"""The bicubic de Casteljau split in 4-wide vectors (LLVM IR through a numba intrinsic).
+
+Numba compiles the scalar split to scalar instructions (it leaves LLVM's SLP vectoriser off),
+and a split is a third of the search. Here the 4 x 4 control points of one coordinate are four
+vectors, one per row of constant v (points k = 4 j + i): halving in v runs the same lerps on
+whole rows; halving in u transposes first, so each vector holds a column. The arithmetic is
+the scalar split's, lane by lane: (a + b) * 0.5 in the buffer's dtype, no fused or reordered
+operations, so results are bit-identical (tests/test_bezier.py checks).
+"""
+from __future__ import annotations
+
+from llvmlite import ir
+from numba.core import cgutils, types
+from numba.extending import intrinsic
+
+_TRANSPOSE_LOW = [0, 4, 1, 5]
+_TRANSPOSE_HIGH = [2, 6, 3, 7]
+
+
+def _shuffle(builder, a, b, lanes):
+    return builder.shuffle_vector(a, b, ir.Constant(ir.VectorType(ir.IntType(32), len(lanes)), lanes))
+
+
+def _transpose(builder, rows):
+    """4 x 4 transpose of four 4-lane vectors."""
+    r0, r1, r2, r3 = rows
+    t0 = _shuffle(builder, r0, r1, _TRANSPOSE_LOW)
+    t1 = _shuffle(builder, r0, r1, _TRANSPOSE_HIGH)
+    t2 = _shuffle(builder, r2, r3, _TRANSPOSE_LOW)
+    t3 = _shuffle(builder, r2, r3, _TRANSPOSE_HIGH)
+    return [_shuffle(builder, t0, t2, [0, 1, 4, 5]), _shuffle(builder, t0, t2, [2, 3, 6, 7]),
+            _shuffle(builder, t1, t3, [0, 1, 4, 5]), _shuffle(builder, t1, t3, [2, 3, 6, 7])]
+
+
+def _min(builder, a, b):
+    return builder.select(builder.fcmp_ordered('<', a, b), a, b)
+
+
+def _max(builder, a, b):
+    return builder.select(builder.fcmp_ordered('>', a, b), a, b)
+
+
+def _reduce(builder, op, vectors):
+    """op over every lane of the vectors, as a scalar."""
+    acc = vectors[0]
+    for v in vectors[1:]:
+        acc = op(builder, acc, v)
+    acc = op(builder, acc, _shuffle(builder, acc, acc, [2, 3, 0, 1]))
+    acc = op(builder, acc, _shuffle(builder, acc, acc, [1, 0, 3, 2]))
+    return builder.extract_element(acc, ir.IntType(32)(0))
+
+
+def _make_split(along_u: bool):
+    def split(typingctx, buf, src, dst, box):
+        if not (isinstance(buf, types.Array) and buf.ndim == 3 and buf.layout == 'C'
+                and buf.dtype in (types.float32, types.float64)
+                and isinstance(box, types.Array) and box.ndim == 2 and box.dtype == types.float64):
+            return None
+        sig = types.void(buf, src, dst, box)
+
+        def codegen(context, builder, signature, args):
+            buf_ty, src_ty, dst_ty, box_ty = signature.args
+            buf_v, src_v, dst_v, box_v = args
+            src_i = context.cast(builder, src_v, src_ty, types.intp)
+            dst_i = context.cast(builder, dst_v, dst_ty, types.intp)
+            points = context.make_array(buf_ty)(context, builder, buf_v)
+            boxes = context.make_array(box_ty)(context, builder, box_v)
+            elem = context.get_value_type(buf_ty.dtype)
+            vec = ir.VectorType(elem, 4)
+            half = ir.Constant(vec, [ir.Constant(elem, 0.5)] * 4)
+            align = context.get_abi_sizeof(elem)
+
+            def item(arr, arr_ty, *indices):
+                return cgutils.get_item_pointer2(context, builder, arr.data, cgutils.unpack_tuple(builder, arr.shape),
+                                                 cgutils.unpack_tuple(builder, arr.strides), arr_ty.layout,
+                                                 [context.get_constant(types.intp, k) if isinstance(k, int) else k
+                                                  for k in indices])
+
+            def rows_at(slot, c):
+                base = builder.bitcast(item(points, buf_ty, slot, c, 0), vec.as_pointer())
+                return [builder.gep(base, [ir.IntType(64)(j)]) for j in range(4)]
+
+            def lerp(a, b):
+                return builder.fmul(builder.fadd(a, b), half)
+
+            def store_box(slot, c, lo, hi):
+                for k, value in ((c, lo), (3 + c, hi)):
+                    if elem != ir.DoubleType():
+                        value = builder.fpext(value, ir.DoubleType())
+                    builder.store(value, item(boxes, box_ty, slot, k))
+
+            for c in range(3):
+                src_rows = rows_at(src_i, c)
+                dst_rows = rows_at(dst_i, c)
+                p = [builder.load(ptr, align=align) for ptr in src_rows]
+                if along_u:
+                    p = _transpose(builder, p)
+                q0, q1, q2 = lerp(p[0], p[1]), lerp(p[1], p[2]), lerp(p[2], p[3])
+                s0, s1 = lerp(q0, q1), lerp(q1, q2)
+                mid = lerp(s0, s1)
+                low = [p[0], q0, s0, mid]
+                high = [mid, s1, q2, p[3]]
+                store_box(src_i, c, _reduce(builder, _min, low), _reduce(builder, _max, low))
+                store_box(dst_i, c, _reduce(builder, _min, high), _reduce(builder, _max, high))
+                if along_u:
+                    low, high = _transpose(builder, low), _transpose(builder, high)
+                for ptr, value in zip(src_rows, low):
+                    builder.store(value, ptr, align=align)
+                for ptr, value in zip(dst_rows, high):
+                    builder.store(value, ptr, align=align)
+            return context.get_dummy_value()
+
+        return sig, codegen
+
+    split.__name__ = split.__qualname__ = 'split_u_cubic' if along_u else 'split_v_cubic'
+    return split
+
+
+split_u_cubic = intrinsic(_make_split(True))
+split_u_cubic.__doc__ = """Halve a bicubic in slot src at u = 1/2 (src keeps [0, 1/2], dst gets [1/2, 1]),
+writing both halves' control boxes into box[src], box[dst]."""
+split_v_cubic = intrinsic(_make_split(False))
+split_v_cubic.__doc__ = """Halve a bicubic in slot src at v = 1/2, with both halves' boxes (see split_u_cubic)."""
