@@ -227,35 +227,57 @@ def _refine(buf, box, mf, s, m, n, count, ctrl64, start, eps64, p, w64, f32, bit
 
 
 @njit(cache=True, nogil=True, inline='always')
+def _hull_off_plane(buf, s, count, is_rational, mf, ray, sub_scale, n0, n1, n2):
+    """Is the convex hull of slot s's control points (widened by the error bounds) wholly on one
+    side of the plane through the ray with unit normal (n0, n1, n2), normal to the ray?"""
+    sub = mf[s, M_MAG] * sub_scale
+    rel0 = mf[s, M_OX] - ray[R_O]
+    rel1 = mf[s, M_OX + 1] - ray[R_O + 1]
+    rel2 = mf[s, M_OX + 2] - ray[R_O + 2]
+    offset = rel0 * n0 + rel1 * n1 + rel2 * n2
+    lo = math.inf
+    hi = -math.inf
+    for k in range(count):
+        dist = (_corner(buf, s, k, 0, is_rational) * n0 + _corner(buf, s, k, 1, is_rational) * n1
+                + _corner(buf, s, k, 2, is_rational) * n2)
+        lo = min(lo, dist)
+        hi = max(hi, dist)
+    slack = ((mf[s, M_E] + sub) * abs(n0) + (mf[s, M_E + 1] + sub) * abs(n1) + (mf[s, M_E + 2] + sub) * abs(n2)
+             + 2.0 ** -51 * (abs(rel0) + abs(rel1) + abs(rel2) + max(abs(lo), abs(hi))))
+    return offset + lo > slack or offset + hi < -slack
+
+
+@njit(cache=True, nogil=True, inline='always')
 def _hull_hit(buf, s, count, is_rational, mf, ray, sub_scale):
     """Does the ray meet the convex hull of slot s's control points (widened by the error
     bounds)? Tested as the hull's extent across two planes that meet in the ray, so a ray
     clipping a corner of a thin, tilted sub-patch's box is not taken for a hit."""
-    sub = mf[s, M_MAG] * sub_scale
-    for plane in range(2):
-        base = R_N1 if plane == 0 else R_N2
-        n0 = ray[base]
-        n1 = ray[base + 1]
-        n2 = ray[base + 2]
-        rel0 = mf[s, M_OX] - ray[R_O]
-        rel1 = mf[s, M_OX + 1] - ray[R_O + 1]
-        rel2 = mf[s, M_OX + 2] - ray[R_O + 2]
-        offset = rel0 * n0 + rel1 * n1 + rel2 * n2
-        lo = math.inf
-        hi = -math.inf
-        for k in range(count):
-            x = _corner(buf, s, k, 0, is_rational)
-            y = _corner(buf, s, k, 1, is_rational)
-            z = _corner(buf, s, k, 2, is_rational)
-            dist = x * n0 + y * n1 + z * n2
-            lo = min(lo, dist)
-            hi = max(hi, dist)
-        slack = ((mf[s, M_E] + sub) * abs(n0) + (mf[s, M_E + 1] + sub) * abs(n1)
-                 + (mf[s, M_E + 2] + sub) * abs(n2)
-                 + 2.0 ** -51 * (abs(rel0) + abs(rel1) + abs(rel2) + max(abs(lo), abs(hi))))
-        if offset + lo > slack or offset + hi < -slack:
+    for base in (R_N1, R_N2):
+        if _hull_off_plane(buf, s, count, is_rational, mf, ray, sub_scale, ray[base], ray[base + 1], ray[base + 2]):
             return False
     return True
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _seam_plane(buf, s, m, n, direction, rational, ray):
+    """Unit normal of the plane through the ray along the seam a split just made (slot s's
+    u = 0 edge after a u split, its v = 0 edge after a v split): the two halves lie on either
+    side of it up to their curvature, so it separates the ray from the half it does not cross.
+    (0, 0, 0) if the seam is parallel to the ray or collapsed."""
+    end = n * (m + 1) if direction == 0 else m
+    ex = _corner(buf, s, end, 0, rational) - _corner(buf, s, 0, 0, rational)
+    ey = _corner(buf, s, end, 1, rational) - _corner(buf, s, 0, 1, rational)
+    ez = _corner(buf, s, end, 2, rational) - _corner(buf, s, 0, 2, rational)
+    dx = ray[R_D]
+    dy = ray[R_D + 1]
+    dz = ray[R_D + 2]
+    wx = dy * ez - dz * ey
+    wy = dz * ex - dx * ez
+    wz = dx * ey - dy * ex
+    length = math.sqrt(wx * wx + wy * wy + wz * wz)
+    if not length > 0.0:
+        return 0.0, 0.0, 0.0
+    return wx / length, wy / length, wz / length
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -555,11 +577,16 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, ep
         if alive_far and alive_near:
             # The ray meets both boxes: the control hulls (across two planes through the ray)
             # are much thinner than the boxes, and one of them usually misses (a side branch saved).
+            # The plane along the new seam separates first (the half the ray does not cross is on
+            # its far side); the planes of the ray's own frame catch the rest.
+            w0, w1, w2 = _seam_plane(buf, b, m, n, direction, is_rational, ray)
             dropped = -1
-            if not _hull_hit(buf, far, count, is_rational, mf, ray, sub_scale):
+            if (_hull_off_plane(buf, far, count, is_rational, mf, ray, sub_scale, w0, w1, w2)
+                    or not _hull_hit(buf, far, count, is_rational, mf, ray, sub_scale)):
                 alive_far = 0
                 dropped = far
-            elif not _hull_hit(buf, near, count, is_rational, mf, ray, sub_scale):
+            elif (_hull_off_plane(buf, near, count, is_rational, mf, ray, sub_scale, w0, w1, w2)
+                  or not _hull_hit(buf, near, count, is_rational, mf, ray, sub_scale)):
                 alive_near = 0
                 dropped = near
             if trace is not None and dropped >= 0:
