@@ -405,6 +405,25 @@ def test_float_criterion_boxes_are_a_few_ulps(offset):
     assert widths.max() <= 4 * size_ulp, f"widest box {widths.max() / size_ulp:.1f} ulps"
 
 
+def test_grid_steps_are_float32_spacing_at_the_leaf_capped_by_the_scene():
+    """The float criterion's grid: per leaf and axis, the float32 spacing at the leaf's largest
+    world coordinate; moved far from the origin, the spacing at the scene's half-extent instead
+    (the same for every leaf, so the render does not coarsen); no grid in float64."""
+    def spacings(geom):
+        box = geom.leaf_box
+        magnitude = np.maximum(np.abs(box[:, :3]), np.abs(box[:, 3:]))
+        half = 0.5 * np.max(box[:, 3:].max(axis=0) - box[:, :3].min(axis=0))
+        return ref.ulp(magnitude), ref.ulp(half)
+
+    at_origin = prepare(S.teapot(), "f32")
+    world, scene = spacings(at_origin)
+    assert np.array_equal(at_origin.grid, np.minimum(world, scene))
+    assert np.mean(at_origin.grid < scene) > 0.5  # near the origin, mostly the world's spacing
+    far = prepare(S.teapot(offset=(1e4, 1e4, 1e4)), "f32")
+    assert np.all(far.grid == spacings(far)[1]) and spacings(far)[1] == scene
+    assert not np.any(prepare(S.teapot(), "f64").grid)
+
+
 @pytest.mark.parametrize("split", ["length", "cross"])
 def test_every_criterion_and_split_keeps_the_hits(split):
     scene = S.teapot()

@@ -6,7 +6,7 @@ lid and bottom apexes, self-intersecting and folded patches, seams between the t
 patch split at a non-dyadic parameter, and degree 9x7 and 15x15 patches.
 
 Targets (issue 2), per scene, against `render.reference_frame` (float64, `float` criterion,
-the same rays): zero holes, zero false hits, mean L1 position error <= 10x the float32
+the same rays): zero holes, zero false hits, mean L1 position error <= 10x (aim, held here: 2x) the float32
 rounding floor (the mean L1 error of rounding the reference positions to float32), and
 >= 99.99 % of the reference positions inside the float32 hit box widened by 4 float32 ulps per
 coordinate (ulp of max(|lo|, |hi|), the kernel's measure) -- with these image sizes: all.
@@ -34,10 +34,11 @@ def test_no_holes_no_false_hits(name, tmp_path):
 
 
 @pytest.mark.parametrize("name", list(CASES))
-def test_mean_error_within_10x_float32_floor(name, tmp_path):
+def test_mean_error_within_2x_float32_floor(name, tmp_path):
+    """Issue 2 asks for 10x and aims at 2x: hold the aim."""
     cmp = result(name)
     assert cmp.hits > 100
-    assert cmp.ratio <= 10.0, f"{S.TABLE_HEADER}\n{cmp.row()}"
+    assert cmp.ratio <= 2.0, f"{S.TABLE_HEADER}\n{cmp.row()}"
 
 
 @pytest.mark.parametrize("name", list(CASES))

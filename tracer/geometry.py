@@ -35,6 +35,8 @@ class Geometry:
     deg_v: np.ndarray     # (n_leaves,) int32
     rational: np.ndarray  # (n_leaves,) int8: 1 for rational patches
     frame: np.ndarray     # (n_leaves, 3) float64 frame origin of each leaf
+    grid: np.ndarray      # (n_leaves, 3) float64 step of the grid hit boxes are rounded onto, per
+                          # axis (a power of two; 0 in float64: no grid), see grid_steps
     eps: np.ndarray       # (n_leaves, 3) float64 bound on |stored surface - true surface| per axis
     ctrl64: np.ndarray    # ctrl in float64 (the same array at f64): the kernel re-derives small
                           # sub-patches from it, so their error shrinks with them (intersect._refine)
@@ -207,6 +209,7 @@ def prepare(scene, precision: str = "f32", presplit: int | None = None) -> Geome
         pad = eps[p] + magnitude * 2.0 ** (9 - bits) + np.finfo(np.float64).tiny
         boxes[p, :3] = box[:3] - pad + frame[p]
         boxes[p, 3:] = box[3:] + pad + frame[p]
+    grid = grid_steps(boxes, bits)
     patch_trim, trim_arrays = _trim_arrays(scene)
     domain = np.asarray(scene.patch_domain, np.float64)[leaf_patch]
     leaf_domain = np.column_stack([
@@ -215,9 +218,31 @@ def prepare(scene, precision: str = "f32", presplit: int | None = None) -> Geome
         domain[:, 2] + leaf_param[:, 2] * (domain[:, 3] - domain[:, 2]),
         domain[:, 2] + leaf_param[:, 3] * (domain[:, 3] - domain[:, 2])])
     return Geometry(precision, ctrl, start, np.asarray(deg_u, np.int32), np.asarray(deg_v, np.int32),
-                    np.asarray(rational, np.int8), frame, eps, ctrl64, eps64, boxes, build_bvh(boxes),
+                    np.asarray(rational, np.int8), frame, grid, eps, ctrl64, eps64, boxes, build_bvh(boxes),
                     np.ascontiguousarray(leaf_domain), patch_trim[leaf_patch], trim_arrays,
                     leaf_patch, np.ascontiguousarray(leaf_param, np.float64), k)
+
+
+def grid_steps(boxes: np.ndarray, bits: int) -> np.ndarray:
+    """Per leaf and axis, the grid the `float` criterion resolves hits to: the working precision's
+    spacing at the leaf's largest world coordinate (float32 numbers there can tell no finer
+    points apart), but never coarser than at the scene's half-extent, so that a scene far from
+    the world origin is resolved as finely as one at it. None in float64 (zeros): the reference
+    resolves as far as its boxes shrink.
+
+    boxes: (n_leaves, 6) world boxes."""
+    n = len(boxes)
+    if bits >= 53 or n == 0:
+        return np.zeros((n, 3))
+    magnitude = np.maximum(np.abs(boxes[:, :3]), np.abs(boxes[:, 3:]))
+    half_extent = 0.5 * float(np.max(boxes[:, 3:].max(axis=0) - boxes[:, :3].min(axis=0)))
+    tiniest = 2.0 ** (-126 - bits)  # below every positive working-precision number
+    return np.minimum(_spacing(np.maximum(magnitude, tiniest), bits), _spacing(max(half_extent, tiniest), bits))
+
+
+def _spacing(x, bits: int):
+    """Spacing of `bits`-bit floats at x > 0 (a power of two)."""
+    return np.ldexp(1.0, np.frexp(x)[1] - bits)
 
 
 def _trim_arrays(scene):

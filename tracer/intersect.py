@@ -17,13 +17,13 @@ from the float64 leaf (_refine), which resets the bound to its own rounding. The
 runs in the patch's frame (the ray origin is moved there once, in float64);
 ray-box slabs run in float64 on frame-relative = local + offset.
 
-The float criterion is Dammertz's "the box stopped shrinking", applied to the
-frame-relative box rounded outward onto the working precision's grid, its L1
-diameter summed in that precision: the search ends where the working
-precision can no longer tell the boxes apart (translation-invariant: a patch
-far from the world origin is traced as precisely as one at it), and that grid
-box, moved to world coordinates, is the reported hit box. The other criteria
-are tested on the same grid box, so what they promise holds for what is reported.
+The float criterion is Dammertz's "the box stopped shrinking", applied to the box rounded
+outward onto the leaf's grid (geometry.grid_steps: the float32 spacing at the leaf's largest
+world coordinate, or finer where the scene is far from the world origin), its L1 diameter
+exact: the search ends where float32 numbers can no longer tell the boxes apart, and that
+grid box, moved to world coordinates, is the reported hit box. The other criteria are tested
+on the same grid box, so what they promise holds for what is reported. In float64 there is no
+grid: the reference resolves as far as its boxes shrink.
 
 Kernels that allocate nothing are compiled with numba's `_nrt=False`: they only borrow the
 arrays they are given, and without it numba keeps atomic reference counts of them across the
@@ -37,7 +37,6 @@ Scratch (one set per thread), S = max depth + 2 slots:
                                   trim state (0 undecided, 1 wholly in the kept region)
   order (S,)      uint32          stack position -> slot (children swap order without copying;
                                   unsigned, so numba adds no negative-index fix-ups)
-  f32   (1,)      float32         with its int32 view i32: rounds to and steps on the float32 grid
 """
 from __future__ import annotations
 
@@ -65,7 +64,7 @@ M_D = 6                               # L1 diameter of the widened local box
 M_DPAR = 7                            # the parent's criterion diameter
 M_OX = 8                              # 8, 9, 10: offset, patch frame = local + offset
 M_MAG = 11                            # largest |local coordinate| of the box
-M_GULP = 12                           # working-grid ulp at the box's frame magnitude (a bound)
+M_GULP = 12                           # the coarsest grid step (float64: its ulp at the frame magnitude)
 M_W = 13                              # L1 size of the widening (error bounds) in M_D
 M_E = 14                              # 14, 15, 16: bound on |stored - true surface| per axis
 MF_LEN = 17
@@ -90,31 +89,21 @@ def _ulp(x, bits):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _grid_down(q, bits, f32, i32):
-    """The largest working-precision number <= q (float64 is its own grid)."""
-    if bits >= 53:
-        return q
-    f32[0] = q
-    v = float(f32[0])
-    if v == 0.0:
-        return v if v <= q else -1.401298464324817e-45  # the negative float32 nearest zero
-    # Rounded up? Step one float32 down, branch-free (the direction is random, a branch mispredicts).
-    i32[0] -= (v > q) * (1 if v > 0.0 else -1)
-    return float(f32[0])
+def _snap_down(q, g):
+    """The largest multiple of the grid step g <= q (exact: g is a power of two); q itself when
+    there is no grid (g = 0, float64)."""
+    return math.floor(q / g) * g if g > 0.0 else q
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _grid_up(q, bits, f32, i32):
-    return -_grid_down(-q, bits, f32, i32)
+def _snap_up(q, g):
+    return math.ceil(q / g) * g if g > 0.0 else q
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _to_working(q, bits, f32):
+def _to_working(q, bits):
     """q rounded to the working precision."""
-    if bits >= 53:
-        return q
-    f32[0] = q
-    return float(f32[0])
+    return q if bits >= 53 else np.float64(np.float32(q))
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -139,23 +128,23 @@ def _widen(box, mf, s, sub_scale):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _grid_l1(box, mf, s, bits, f32, i32):
-    """L1 diameter of slot s's world box rounded outward onto the working grid, summed in
-    working precision (so extents far below the others' ulps do not count)."""
+def _grid_l1(box, mf, s, grid, p):
+    """L1 diameter of slot s's box rounded outward onto the leaf's grid (exact)."""
     total = 0.0
     for c in range(3):
         o = mf[s, M_OX + c]
-        total += _grid_up(box[s, 3 + c] + o, bits, f32, i32) - _grid_down(box[s, c] + o, bits, f32, i32)
-    return _to_working(total, bits, f32)
+        total += _snap_up(box[s, 3 + c] + o, grid[p, c]) - _snap_down(box[s, c] + o, grid[p, c])
+    return total
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _within_ulps(box, mf, s, ulps, bits, f32, i32):
-    """Are the grid box's corners within `ulps` units in the last place (of `bits`-bit floats)
-    of their frame coordinates?"""
+def _within_ulps(box, mf, s, ulps, bits, grid, frame, p):
+    """Are the grid box's world corners within `ulps` units in the last place (of `bits`-bit
+    floats) of each other, per coordinate?"""
     for c in range(3):
-        lo = _grid_down(box[s, c] + mf[s, M_OX + c], bits, f32, i32)
-        hi = _grid_up(box[s, 3 + c] + mf[s, M_OX + c], bits, f32, i32)
+        o = mf[s, M_OX + c]
+        lo = _snap_down(box[s, c] + o, grid[p, c]) + frame[p, c]
+        hi = _snap_up(box[s, 3 + c] + o, grid[p, c]) + frame[p, c]
         mag = max(abs(lo), abs(hi))
         if mag > 0.0 and hi - lo > ulps * _ulp(mag, bits):
             return False
@@ -171,12 +160,12 @@ def _raw_box(buf, box, s, count, is_rational):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _recentre(buf, box, mf, s, count, is_rational, f32, bits, sub_scale, round_unit):
+def _recentre(buf, box, mf, s, count, is_rational, bits, sub_scale, round_unit):
     """Shift slot s's control points so its box is centred near 0 (the shift rounded to the
     working precision: for points close to the shift the subtraction is exact, Sterbenz; the
     others round by at most half an ulp of the result, added to the slot's error bound)."""
     for c in range(3):
-        shift = _to_working(0.5 * (box[s, c] + box[s, 3 + c]), bits, f32)
+        shift = _to_working(0.5 * (box[s, c] + box[s, 3 + c]), bits)
         offset = mf[s, M_OX + c]
         if offset != 0.0:  # a multiple of the offset's float64 ulp: offset + shift stays exact
             q = math.ldexp(1.0, math.frexp(offset)[1] - 53)
@@ -195,7 +184,7 @@ def _recentre(buf, box, mf, s, count, is_rational, f32, bits, sub_scale, round_u
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _refine(buf, box, mf, s, m, n, count, ctrl64, start, eps64, p, w64, f32, bits):
+def _refine(buf, box, mf, s, m, n, count, ctrl64, start, eps64, p, w64, bits):
     """Re-derive slot s's (integral) control points from the float64 leaf over its parameter
     interval, stored relative to a new offset at the box centre: their error bound drops from the
     leaf's rounding to the sub-patch's own, so the error band no longer outgrows the box.
@@ -214,7 +203,7 @@ def _refine(buf, box, mf, s, m, n, count, ctrl64, start, eps64, p, w64, f32, bit
             lo = min(lo, w64[c, k])
             hi = max(hi, w64[c, k])
             big = max(big, abs(ctrl64[c, start + k]))
-        offset = _to_working(0.5 * (lo + hi), bits, f32)
+        offset = _to_working(0.5 * (lo + hi), bits)
         err = 0.0
         for k in range(count):
             local = w64[c, k] - offset  # rounds by at most an ulp of itself (counted below)
@@ -363,14 +352,14 @@ def _open_child(box, mf, mi, s, ray, best_t, p, frame, trace):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _report(hit, box, mf, a, p, depth, bits, f32, i32, frame):
+def _report(hit, box, mf, a, p, depth, grid, frame):
     """Record slot a as the closest hit so far: its grid box, in world coordinates."""
     hit[H_TIN] = mf[a, M_TIN]
     hit[H_TOUT] = mf[a, M_TOUT]
     for c in range(3):
         o = mf[a, M_OX + c]
-        hit[H_LO + c] = _grid_down(box[a, c] + o, bits, f32, i32) + frame[p, c]
-        hit[H_HI + c] = _grid_up(box[a, 3 + c] + o, bits, f32, i32) + frame[p, c]
+        hit[H_LO + c] = _snap_down(box[a, c] + o, grid[p, c]) + frame[p, c]
+        hit[H_HI + c] = _snap_up(box[a, 3 + c] + o, grid[p, c]) + frame[p, c]
     hit[H_U] = 0.5 * (mf[a, M_U0] + mf[a, M_U1])
     hit[H_V] = 0.5 * (mf[a, M_V0] + mf[a, M_V1])
     hit[H_DU] = mf[a, M_U1] - mf[a, M_U0]
@@ -380,9 +369,9 @@ def _report(hit, box, mf, a, p, depth, bits, f32, i32, frame):
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, eps64, ray, hit,
+def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64, ray, hit,
                  criterion, param, split_mode, max_depth, bits,
-                 buf, box, mf, mi, order, f32, i32, lray, w64, trims, trim_h, trim_m, trace):
+                 buf, box, mf, mi, order, lray, w64, trims, trim_h, trim_m, trace):
     """Closest intersection of `ray` with patch p beyond t_min and before hit[H_TIN].
 
     Updates `hit` when a closer hit box is found; returns the number of boxes computed.
@@ -444,7 +433,10 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, ep
     frame_mag = 0.0
     for k in range(6):
         frame_mag = max(frame_mag, abs(box[s, k]))
-    mf[s, M_GULP] = _ulp(frame_mag, bits) if frame_mag > 0.0 else 0.0
+    gulp = max(grid[p, 0], grid[p, 1], grid[p, 2])
+    if gulp == 0.0:  # no grid (float64): its own ulps
+        gulp = _ulp(frame_mag, bits) if frame_mag > 0.0 else 0.0
+    mf[s, M_GULP] = gulp
     effort = 1
     sp = _open_child(box, mf, mi, s, ray, hit[H_TIN], p, frame, trace)
     while sp > 0:
@@ -476,14 +468,14 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, ep
             limit = max(limit, param)
         elif criterion == ADAPTIVE:
             limit = max(limit, ray[R_T0] + ray[R_DT] * mf[a, M_TIN])
-        d_crit = _grid_l1(box, mf, a, bits, f32, i32) if d <= limit else d
+        d_crit = _grid_l1(box, mf, a, grid, p) if d <= limit else d
         stop = depth >= max_depth
         if criterion == FIXED:
             stop = stop or d_crit <= param
         elif criterion == ADAPTIVE:
             stop = stop or d_crit <= ray[R_T0] + ray[R_DT] * mf[a, M_TIN]
         elif criterion == MANTISSA:
-            stop = stop or _within_ulps(box, mf, a, param, bits, f32, i32)
+            stop = stop or _within_ulps(box, mf, a, param, bits, grid, frame, p)
         # Float precision: the box did not shrink, even after halving the other direction too.
         # "Shrink" means by more than rounding noise: in float64 (its own grid) the widened box
         # otherwise keeps losing last bits forever. An interval that can no longer halve is spent.
@@ -504,7 +496,7 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, ep
             if trace is not None:
                 _set_event(trace, mi[a, 3], HIT if found else MISS)
             if found:
-                _report(hit, box, mf, a, p, depth, bits, f32, i32, frame)
+                _report(hit, box, mf, a, p, depth, grid, frame)
                 if trace is not None and mi[a, 3] >= 0:  # the hit step shows the reported grid box
                     for c in range(6):
                         trace[0][mi[a, 3], 4 + c] = hit[H_LO + c]
@@ -512,9 +504,9 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, ep
             continue
         ext = max(box[a, 3] - box[a, 0], box[a, 4] - box[a, 1], box[a, 5] - box[a, 2])
         if cumulative and (mf[a, M_E] + mf[a, M_E + 1] + mf[a, M_E + 2]) * REFINE > ext:
-            _refine(buf, box, mf, a, m, n, count, ctrl64, start, eps64, p, w64, f32, bits)
+            _refine(buf, box, mf, a, m, n, count, ctrl64, start, eps64, p, w64, bits)
         elif ext * RECENTRE < mf[a, M_MAG]:
-            _recentre(buf, box, mf, a, count, is_rational, f32, bits, sub_scale, round_unit)
+            _recentre(buf, box, mf, a, count, is_rational, bits, sub_scale, round_unit)
         if shrank:
             direction = _split_direction(buf, a, m, n, count, ray, split_mode, is_rational)
         else:

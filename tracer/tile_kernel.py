@@ -19,7 +19,7 @@ from .trim_kernel import MAX_SPLIT_DEPTH
 
 @njit(cache=True, nogil=True)
 def render_tile(y0, y1, x0, x1, origins, dirs,
-                ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, eps64, node_box, node_child, node_patch,
+                ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64, node_box, node_child, node_patch,
                 criterion, param, split_mode, max_depth, bits, detail_slope, max_points, stack_nodes,
                 trims, trim_points, leaf_patch,
                 out_hit, out_t, out_pos, out_lo, out_hi, out_normal, out_uv, out_patch, out_effort):
@@ -36,17 +36,15 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
     mf = np.zeros((slots, MF_LEN))
     mi = np.zeros((slots, 5), np.int32)
     order = np.arange(slots).astype(np.uint32)  # unsigned slot indices: no negative-index fix-ups
-    f32 = np.zeros(1, np.float32)
-    i32 = f32.view(np.int32)
     lray = np.zeros(RAY_LEN)
     trim_h = np.zeros((MAX_SPLIT_DEPTH + 4, trim_points, 3))
     trim_m = np.zeros((MAX_SPLIT_DEPTH + 4, 6))
     node_stack = np.zeros(stack_nodes, np.int32)
     node_tin = np.zeros(stack_nodes)
     _render_pixels(y0, y1, x0, x1, origins, dirs,
-                   ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, eps64, node_box, node_child,
+                   ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64, node_box, node_child,
                    node_patch, criterion, param, split_mode, max_depth, bits, detail_slope,
-                   trims, leaf_patch, buf, box, mf, mi, order, f32, i32, lray, np.zeros((4, max_points)),
+                   trims, leaf_patch, buf, box, mf, mi, order, lray, np.zeros((4, max_points)),
                    trim_h, trim_m,
                    node_stack, node_tin, np.zeros(RAY_LEN), np.zeros(HIT_LEN), np.zeros((4, max_points)),
                    np.zeros((4, max_points)), np.zeros((6, 4)), np.zeros(3),
@@ -55,9 +53,9 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
 
 @njit(cache=True, nogil=True, _nrt=False)  # allocates nothing: no reference counts (see intersect)
 def _render_pixels(y0, y1, x0, x1, origins, dirs,
-                   ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, eps64, node_box, node_child,
+                   ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64, node_box, node_child,
                    node_patch, criterion, param, split_mode, max_depth, bits, detail_slope,
-                   trims, leaf_patch, buf, box, mf, mi, order, f32, i32, lray, w64, trim_h, trim_m,
+                   trims, leaf_patch, buf, box, mf, mi, order, lray, w64, trim_h, trim_m,
                    node_stack, node_tin, ray, hit, pts, scratch, work, normal,
                    out_hit, out_t, out_pos, out_lo, out_hi, out_normal, out_uv, out_patch, out_effort):
     """render_tile's pixel loop, on scratch it was given."""
@@ -71,10 +69,10 @@ def _render_pixels(y0, y1, x0, x1, origins, dirs,
             make_ray(ray, origins[y, x, 0], origins[y, x, 1], origins[y, x, 2], dx, dy, dz,
                      0.0, 0.0, detail_slope * length)
             hit[H_TIN] = math.inf
-            out_effort[y, x] = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, eps64,
+            out_effort[y, x] = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64,
                                          node_box, node_child, node_patch,
                                          criterion, param, split_mode, max_depth, bits,
-                                         buf, box, mf, mi, order, f32, i32, lray, w64, trims, trim_h, trim_m,
+                                         buf, box, mf, mi, order, lray, w64, trims, trim_h, trim_m,
                                          node_stack, node_tin, None)
             if hit[H_TIN] == math.inf:
                 out_hit[y, x] = False

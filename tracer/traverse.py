@@ -12,10 +12,10 @@ from .ray import H_PATCH, H_TIN, H_U, H_V, R_D, RAY_LEN, slab
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64, eps64,
+def trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64,
               node_box, node_child, node_patch,
               criterion, param, split_mode, max_depth, bits,
-              buf, box, mf, mi, order, f32, i32, lray, w64, trims, trim_h, trim_m,
+              buf, box, mf, mi, order, lray, w64, trims, trim_h, trim_m,
               node_stack, node_tin, trace):
     """Closest hit of one ray: BVH traversal, near child first, sharing the shrinking ray
     interval with the patch searches. Returns the total effort (patch boxes computed).
@@ -37,9 +37,9 @@ def trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, eps, ctrl64
             continue
         left = node_child[node, 0]
         if left < 0:
-            effort += search_patch(node_patch[node], ctrl, pstart, deg_u, deg_v, rational, frame, eps,
+            effort += search_patch(node_patch[node], ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps,
                                    ctrl64, eps64, ray, hit, criterion, param, split_mode, max_depth, bits,
-                                   buf, box, mf, mi, order, f32, i32, lray, w64, trims, trim_h, trim_m, trace)
+                                   buf, box, mf, mi, order, lray, w64, trims, trim_h, trim_m, trace)
             continue
         right = node_child[node, 1]
         ok_l, tl, _ = slab(node_box[left], 0.0, 0.0, 0.0, ray)
@@ -84,9 +84,8 @@ def hit_normal(hit, ctrl, pstart, deg_u, deg_v, rational, ray, pts, scratch, wor
 
 
 def scratch_for(n_points: int, max_depth: int, dtype):
-    """Per-thread scratch for search_patch / trace_ray: buf, box, mf, mi, order, f32, i32, lray, w64."""
+    """Per-thread scratch for search_patch / trace_ray: buf, box, mf, mi, order, lray, w64."""
     slots = max_depth + 2
-    f32 = np.zeros(1, np.float32)
     return (np.zeros((slots, 4, n_points), dtype), np.zeros((slots, 6)), np.zeros((slots, MF_LEN)),
-            np.zeros((slots, 5), np.int32), np.arange(slots, dtype=np.uint32), f32, f32.view(np.int32),
-            np.zeros(RAY_LEN), np.zeros((4, n_points)))
+            np.zeros((slots, 5), np.int32), np.arange(slots, dtype=np.uint32), np.zeros(RAY_LEN),
+            np.zeros((4, n_points)))
