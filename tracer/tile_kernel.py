@@ -60,6 +60,7 @@ def _render_pixels(y0, y1, x0, x1, origins, dirs,
                    out_hit, out_t, out_pos, out_lo, out_hi, out_normal, out_uv, out_patch, out_effort):
     """render_tile's pixel loop, on scratch it was given."""
     domain = trims[1]
+    patches = (ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64)
     for y in range(y0, y1):
         for x in range(x0, x1):
             dx = dirs[y, x, 0]
@@ -69,8 +70,7 @@ def _render_pixels(y0, y1, x0, x1, origins, dirs,
             make_ray(ray, origins[y, x, 0], origins[y, x, 1], origins[y, x, 2], dx, dy, dz,
                      0.0, 0.0, detail_slope * length)
             hit[H_TIN] = math.inf
-            out_effort[y, x] = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64,
-                                         node_box, node_child, node_patch,
+            out_effort[y, x] = trace_ray(ray, hit, patches, node_box, node_child, node_patch,
                                          criterion, param, split_mode, max_depth, bits,
                                          buf, box, mf, mi, order, lray, w64, trims, trim_h, trim_m,
                                          node_stack, node_tin, None)

@@ -99,8 +99,8 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
     hit = np.zeros(HIT_LEN)
     make_ray(ray, o[0], o[1], o[2], d[0], d[1], d[2], 0.0, 0.0, slope * length)
     hit[H_TIN] = math.inf
-    effort = trace_ray(ray, hit, ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64,
-                       node_box, node_child, node_patch, criterion, param, split_mode, max_depth, bits,
+    patches = (ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64)
+    effort = trace_ray(ray, hit, patches, node_box, node_child, node_patch, criterion, param, split_mode, max_depth, bits,
                        buf, box, mf, mi, order, lray, w64, trims, *trim_scratch(trim_points),
                        node_stack, node_tin, trace)
     k = int(trace[2][0])
