@@ -21,7 +21,7 @@ def trace_ray(ray, hit, patches, node_box, node_child, node_patch,
 
     patches: (ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64) as
     search_patch takes them (one tuple keeps callers under the 30 arguments that numba can
-    inline: the renderer inlines this walk, a call per ray cost a tenth of `adaptive`).
+    inline: the renderer inlines this walk, a call per ray cost a fifth of `adaptive`).
     node_box: (N, 6) float64 world boxes; node_child: (N, 2) int32 children (-1 at a leaf);
     node_patch: (N,) int32 patch of a leaf. hit[H_TIN] must hold the initial t_max (inf).
     """
