@@ -378,6 +378,8 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl
     ctrl: (4, total points) working dtype, local to frame[p] (float64 (n_patches, 3)); row 3
     holds the weights, rows 0-2 are premultiplied by them for rational[p] patches.
     eps: (n_patches, 3) float64 bound of the stored points' rounding error per axis.
+    grid: (n_patches, 3) float64 step of the grid hit boxes are rounded onto (geometry.grid_steps;
+    0: none).
     ctrl64, eps64: the same points in float64 and their error bound; in working precisions below
     float64, sub-patches whose error band grows over 1/REFINE of their box are re-derived from them
     (w64: (4, points) float64 scratch).
