@@ -57,6 +57,24 @@ def test_random_rational_patches_no_holes_no_false_hits(seed):
     assert not np.any(frame.hit & ~ref.hit), "false hits"
 
 
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_random_rational_hit_boxes_hold_the_reference(seed):
+    """Weights from 1e-3 to 1e3: rational slots carry homogeneous error bounds and re-derive
+    from float64, so the float64 point lies within 4 ulps of the float32 hit box for >= 99 % of
+    hits (with per-level bounds alone it was 56-96 %). Not yet all: see the README's known gap."""
+    rng = np.random.default_rng(seed)
+    scene = scene_from_dict({"objects": [{"patches": [random_rational_patch(rng)]}],
+                             "camera": {"eye": [0.3, -0.4, 4.0], "look_at": [0, 0, 0], "up": [0, 1, 0],
+                                        "fov_deg": 40}}, "random rational", ".")
+    frame = render(scene, Options(), size=(48, 48))
+    ref = reference_frame(scene, frame)
+    both = frame.hit & ref.hit
+    lo, hi, p = frame.box_min[both], frame.box_max[both], ref.position[both]
+    ulp = np.spacing(np.maximum(np.abs(lo), np.abs(hi)).astype(np.float32)).astype(np.float64)
+    outside = np.max(np.maximum(np.maximum(lo - p, p - hi), 0.0) / ulp, axis=-1)
+    assert np.mean(outside <= 4.0) >= 0.99, f"{100 * np.mean(outside <= 4.0):.2f} % within 4 ulps"
+
+
 def test_exact_sphere_within_4_ulps_of_its_radius():
     """Every float32 hit on the rational NURBS sphere lies within 4 ulps of the analytic sphere."""
     scene = load_scene(SAMPLES / "sphere.json")

@@ -67,7 +67,9 @@ M_MAG = 11                            # largest |local coordinate| of the box
 M_GULP = 12                           # the coarsest grid step (float64: its ulp at the frame magnitude)
 M_W = 13                              # L1 size of the widening (error bounds) in M_D
 M_E = 14                              # 14, 15, 16: bound on |stored - true surface| per axis
-MF_LEN = 17
+M_EH = 17                             # 17, 18, 19: rational, float32: bound on |stored - float64
+M_EW = 20                             # leaf| of the homogeneous w x, w y, w z, and of w (M_EW)
+MF_LEN = 21
 # Trace record columns (float64): u0 u1 v0 v1 lo xyz hi xyz diameter; (int32): patch depth event.
 TRACE_F, TRACE_I = 11, 3
 
@@ -128,6 +130,22 @@ def _widen(box, mf, s, sub_scale):
 
 
 @njit(cache=True, nogil=True, inline='always')
+def _rational_bound(buf, box, mf, s, count, eps64, p):
+    """M_E of a rational slot from its homogeneous bounds (M_EH, M_EW), before widening: the
+    stored surface N~/W~ differs from the float64 leaf's N/W by (dN - S~ dW) / W per axis, with
+    |dN| <= M_EH, |dW| <= M_EW, |S~| <= the raw box and W >= the least stored weight - M_EW;
+    plus the leaf's own bound (eps64). Infinite if the weights' bound reaches the weights."""
+    w_min = math.inf
+    for k in range(count):
+        w_min = min(w_min, np.float64(buf[s, 3, k]))
+    denom = w_min - mf[s, M_EW]
+    for c in range(3):
+        x = max(abs(box[s, c]), abs(box[s, 3 + c]))
+        e = (mf[s, M_EH + c] + x * mf[s, M_EW]) / denom * (1.0 + 2.0 ** -40) if denom > 0.0 else math.inf
+        mf[s, M_E + c] = eps64[p, c] + e
+
+
+@njit(cache=True, nogil=True, inline='always')
 def _grid_l1(box, mf, s, grid, p):
     """L1 diameter of slot s's box rounded outward onto the leaf's grid (exact)."""
     total = 0.0
@@ -160,7 +178,7 @@ def _raw_box(buf, box, s, count, is_rational):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _recentre(buf, box, mf, s, count, is_rational, bits, sub_scale, round_unit):
+def _recentre(buf, box, mf, s, count, is_rational, bits, sub_scale, round_unit, eps64, p):
     """Shift slot s's control points so its box is centred near 0 (the shift rounded to the
     working precision: for points close to the shift the subtraction is exact, Sterbenz; the
     others round by at most half an ulp of the result, added to the slot's error bound)."""
@@ -171,15 +189,25 @@ def _recentre(buf, box, mf, s, count, is_rational, bits, sub_scale, round_unit):
             q = math.ldexp(1.0, math.frexp(offset)[1] - 53)
             shift = math.floor(shift / q + 0.5) * q
         if is_rational:
+            big = 0.0
+            w_max = 0.0
             for k in range(count):  # w x - shift w, with one rounding
                 buf[s, c, k] = float(buf[s, c, k]) - shift * float(buf[s, 3, k])
+                big = max(big, abs(np.float64(buf[s, c, k])))
+                w_max = max(w_max, np.float64(buf[s, 3, k]))
+            # The weights' error moves by the shift; the product and difference round once each.
+            mf[s, M_EH + c] += abs(shift) * mf[s, M_EW] + (round_unit + 2.0 ** -52) * (big + abs(shift) * w_max)
         else:
             for k in range(count):
                 buf[s, c, k] = float(buf[s, c, k]) - shift
         mf[s, M_OX + c] += shift
     _raw_box(buf, box, s, count, is_rational)
-    for c in range(3):
-        mf[s, M_E + c] += round_unit * max(abs(box[s, c]), abs(box[s, 3 + c]))
+    if is_rational:
+        if round_unit > 0.0:
+            _rational_bound(buf, box, mf, s, count, eps64, p)
+    else:
+        for c in range(3):
+            mf[s, M_E + c] += round_unit * max(abs(box[s, c]), abs(box[s, 3 + c]))
     _widen(box, mf, s, sub_scale)
 
 
@@ -213,6 +241,46 @@ def _refine(buf, box, mf, s, m, n, count, ctrl64, start, eps64, p, w64, bits):
         mf[s, M_E + c] = err + big * rel + eps64[p, c]
     _raw_box(buf, box, s, count, False)
     _widen(box, mf, s, 0.0)  # the bound carries every rounding (float32, integral: see search_patch)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _refine_rational(buf, box, mf, s, m, n, count, ctrl64, start, eps64, p, w64, bits):
+    """_refine for rational slots: the homogeneous float64 leaf restricted to the slot's interval,
+    moved to a new offset at the centre of its (Euclidean) box, stored with fresh bounds."""
+    for c in range(4):
+        for k in range(count):
+            w64[c, k] = ctrl64[c, start + k]
+    restrict(w64, m, n, 4, mf[s, M_U0], mf[s, M_U1], mf[s, M_V0], mf[s, M_V1])
+    rel = restrict_err(m, n)
+    big_w = 0.0
+    w_err = 0.0
+    for k in range(count):
+        big_w = max(big_w, abs(ctrl64[3, start + k]))
+        buf[s, 3, k] = w64[3, k]
+        w_err = max(w_err, abs(np.float64(buf[s, 3, k]) - w64[3, k]))
+    w_bound = w_err + big_w * rel  # |stored weight - the float64 leaf's|
+    mf[s, M_EW] = w_bound
+    for c in range(3):
+        lo = math.inf
+        hi = -math.inf
+        big = 0.0
+        for k in range(count):
+            q = w64[c, k] / w64[3, k]
+            lo = min(lo, q)
+            hi = max(hi, q)
+            big = max(big, abs(ctrl64[c, start + k]))
+        offset = _to_working(0.5 * (lo + hi), bits)
+        err = 0.0
+        for k in range(count):
+            local = w64[c, k] - offset * w64[3, k]  # two roundings of at most an ulp (below)
+            buf[s, c, k] = local
+            err = max(err, abs(np.float64(buf[s, c, k]) - local)
+                      + (abs(local) + abs(offset * w64[3, k])) * 2.0 ** -52)
+        mf[s, M_OX + c] = offset
+        mf[s, M_EH + c] = err + big * rel + abs(offset) * w_bound
+    _raw_box(buf, box, s, count, True)
+    _rational_bound(buf, box, mf, s, count, eps64, p)
+    _widen(box, mf, s, 0.0)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -421,16 +489,28 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl
     mi[s, 4] = 0
     surface = trims[0][p]
     dom = trims[1]
-    # Below float64, integral patches carry their subdivision rounding in the slot's error bound
-    # (M_E), level by level (round_unit: a rounding moves a value by at most this much of it).
-    # Rational patches (homogeneous, quotients in the box) and float64, the reference, are widened
-    # by sub_scale of the current magnitude instead: float64's early roundings (~1e-16 of the leaf)
-    # are far below anything it is compared with, and carrying them would stop it 100x sooner.
-    cumulative = bits < 53 and not is_rational
+    # Below float64, patches carry their subdivision rounding in the slot's error bound (M_E),
+    # level by level (round_unit: a rounding moves a value by at most this much of it); rational
+    # ones carry it for their homogeneous coordinates (M_EH, M_EW: _rational_bound turns them into
+    # M_E). Float64, the reference, is widened by sub_scale of the current magnitude instead: its
+    # early roundings (~1e-16 of the leaf) are far below anything it is compared with, and
+    # carrying them would stop it 100x sooner.
+    cumulative = bits < 53
+    homogeneous = cumulative and is_rational  # rational, float32: homogeneous bounds (M_EH, M_EW)
     sub_scale = 0.0 if cumulative else math.ldexp(1.0, SUB_ERR_BITS - bits)
     round_unit = math.ldexp(1.0, -bits) if cumulative else 0.0
     shrink_factor = 1.0 - math.ldexp(1.0, 4 - bits)  # a real decrease: more than 16 ulps
     _raw_box(buf, box, s, count, is_rational)
+    if homogeneous:  # bounds against the float64 leaf
+        for c in range(4):
+            err = 0.0
+            for k in range(count):
+                err = max(err, abs(np.float64(buf[s, c, k]) - ctrl64[c, start + k]))
+            if c < 3:
+                mf[s, M_EH + c] = err
+            else:
+                mf[s, M_EW] = err
+        _rational_bound(buf, box, mf, s, count, eps64, p)
     _widen(box, mf, s, sub_scale)
     frame_mag = 0.0
     for k in range(6):
@@ -482,11 +562,14 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl
         # "Shrink" means by more than rounding noise: in float64 (its own grid) the widened box
         # otherwise keeps losing last bits forever. An interval that can no longer halve is spent.
         # A box that is mostly error bound cannot get meaningfully smaller either.
-        shrank = d_crit < mf[a, M_DPAR] * shrink_factor and d > 1.0625 * mf[a, M_W]
+        # (Not so for rational slots in float32: re-derived from float64, their bound keeps falling
+        # with their weights' spread as they shrink.)
+        shrank = d_crit < mf[a, M_DPAR] * shrink_factor and (d > 1.0625 * mf[a, M_W] or homogeneous)
         if (mf[a, M_U0] == mf[a, M_U1]) or (mf[a, M_V0] == mf[a, M_V1]):
             stop = True  # the parameter interval cannot be halved any more
-        if not shrank and mi[a, 1] == 1:
-            stop = True
+        if not shrank and mi[a, 1] == 1 and not (is_rational and d > limit):
+            stop = True  # (a rational box can stall far above the float limit while extreme
+            # weights spread its control points: that is no loss of precision, split on)
         if stop:
             # At the depth cap the precision is spent: accept rather than reject (a rejection
             # there would send the search through every branch down to the cap).
@@ -506,9 +589,12 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl
             continue
         ext = max(box[a, 3] - box[a, 0], box[a, 4] - box[a, 1], box[a, 5] - box[a, 2])
         if cumulative and (mf[a, M_E] + mf[a, M_E + 1] + mf[a, M_E + 2]) * REFINE > ext:
-            _refine(buf, box, mf, a, m, n, count, ctrl64, start, eps64, p, w64, bits)
+            if is_rational:
+                _refine_rational(buf, box, mf, a, m, n, count, ctrl64, start, eps64, p, w64, bits)
+            else:
+                _refine(buf, box, mf, a, m, n, count, ctrl64, start, eps64, p, w64, bits)
         elif ext * RECENTRE < mf[a, M_MAG]:
-            _recentre(buf, box, mf, a, count, is_rational, bits, sub_scale, round_unit)
+            _recentre(buf, box, mf, a, count, is_rational, bits, sub_scale, round_unit, eps64, p)
         if shrank:
             direction = _split_direction(buf, a, m, n, count, ray, split_mode, is_rational)
         else:
@@ -517,9 +603,18 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl
         # Each of the split's de Casteljau levels rounds a point by at most half an ulp of the
         # largest coordinate, and the errors of earlier levels stay in the points.
         levels = (m if direction == 0 else n) * round_unit
-        for c in range(3):
-            mf[b, M_E + c] = mf[a, M_E + c] + levels * max(abs(box[a, c]), abs(box[a, 3 + c]))
-            mf[a, M_E + c] = mf[b, M_E + c]
+        if is_rational:  # the same for the homogeneous coordinates (M_E follows from them below)
+            for c in range(4):
+                big = 0.0
+                for k in range(count):
+                    big = max(big, abs(np.float64(buf[a, c, k])))
+                col = M_EH + c if c < 3 else M_EW
+                mf[a, col] += levels * big
+                mf[b, col] = mf[a, col]
+        else:
+            for c in range(3):
+                mf[b, M_E + c] = mf[a, M_E + c] + levels * max(abs(box[a, c]), abs(box[a, 3 + c]))
+                mf[a, M_E + c] = mf[b, M_E + c]
         if cubic:
             if direction == 0:
                 split_u_cubic(buf, a, b, box)
@@ -553,6 +648,8 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl
         stalled = 0 if shrank else 1
         mi[b, 4] = mi[a, 4]
         for child in (a, b):
+            if homogeneous:
+                _rational_bound(buf, box, mf, child, count, eps64, p)
             _widen(box, mf, child, sub_scale)
             mf[child, M_DPAR] = d_crit
             mi[child, 0] = depth + 1
