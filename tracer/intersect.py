@@ -32,7 +32,7 @@ inlined helpers, inside the loop (a fifth of the search time).
 Scratch (one set per thread), S = max depth + 2 slots:
   buf   (S, 4, P) working dtype   control points per slot (row 3: weights of rational patches)
   box   (S, 6)    float64         widened local box per slot: lo xyz, hi xyz
-  mf    (S, 17)   float64         per slot, columns M_*
+  mf    (S, 21)   float64         per slot, columns M_*
   mi    (S, 5)    int32           per slot: depth, stalled, last split (0 u, 1 v), trace step,
                                   trim state (0 undecided, 1 wholly in the kept region)
   order (S,)      uint32          stack position -> slot (children swap order without copying;
