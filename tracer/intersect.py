@@ -178,7 +178,7 @@ def _raw_box(buf, box, s, count, is_rational):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _recentre(buf, box, mf, s, count, is_rational, bits, sub_scale, round_unit, eps64, p):
+def _recentre(buf, box, mf, s, count, is_rational, homogeneous, bits, sub_scale, round_unit, eps64, p):
     """Shift slot s's control points so its box is centred near 0 (the shift rounded to the
     working precision: for points close to the shift the subtraction is exact, Sterbenz; the
     others round by at most half an ulp of the result, added to the slot's error bound)."""
@@ -202,10 +202,9 @@ def _recentre(buf, box, mf, s, count, is_rational, bits, sub_scale, round_unit, 
                 buf[s, c, k] = float(buf[s, c, k]) - shift
         mf[s, M_OX + c] += shift
     _raw_box(buf, box, s, count, is_rational)
-    if is_rational:
-        if round_unit > 0.0:
-            _rational_bound(buf, box, mf, s, count, eps64, p)
-    else:
+    if homogeneous:
+        _rational_bound(buf, box, mf, s, count, eps64, p)
+    elif not is_rational:
         for c in range(3):
             mf[s, M_E + c] += round_unit * max(abs(box[s, c]), abs(box[s, 3 + c]))
     _widen(box, mf, s, sub_scale)
@@ -594,7 +593,7 @@ def search_patch(p, ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl
             else:
                 _refine(buf, box, mf, a, m, n, count, ctrl64, start, eps64, p, w64, bits)
         elif ext * RECENTRE < mf[a, M_MAG]:
-            _recentre(buf, box, mf, a, count, is_rational, bits, sub_scale, round_unit, eps64, p)
+            _recentre(buf, box, mf, a, count, is_rational, homogeneous, bits, sub_scale, round_unit, eps64, p)
         if shrank:
             direction = _split_direction(buf, a, m, n, count, ray, split_mode, is_rational)
         else:

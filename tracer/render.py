@@ -76,9 +76,9 @@ def kernel_args(geom: Geometry, opts: Options, pixel_angle: float):
              "mantissa": float(opts.mantissa_ulps)}[opts.criterion]
     slope = opts.pixel_fraction * pixel_angle if opts.criterion == "adaptive" else 0.0
     bvh = geom.bvh
-    return (geom.ctrl, geom.pstart, geom.deg_u, geom.deg_v, geom.rational, geom.frame, geom.grid, geom.eps,
-            geom.ctrl64, geom.eps64,
-            bvh.node_box, bvh.node_child, bvh.node_patch,
+    patches = (geom.ctrl, geom.pstart, geom.deg_u, geom.deg_v, geom.rational, geom.frame, geom.grid, geom.eps,
+               geom.ctrl64, geom.eps64)  # as traverse.trace_ray takes them
+    return (patches, bvh.node_box, bvh.node_child, bvh.node_patch,
             criterion, param, SPLIT_CODE[opts.split], geom.max_depth, geom.bits, slope,
             max(geom.max_points, 16), bvh.depth + 2, geom.trims_for(opts.trims), geom.trim_points,
             geom.leaf_patch)

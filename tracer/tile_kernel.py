@@ -18,20 +18,20 @@ from .trim_kernel import MAX_SPLIT_DEPTH
 
 
 @njit(cache=True, nogil=True)
-def render_tile(y0, y1, x0, x1, origins, dirs,
-                ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64, node_box, node_child, node_patch,
+def render_tile(y0, y1, x0, x1, origins, dirs, patches, node_box, node_child, node_patch,
                 criterion, param, split_mode, max_depth, bits, detail_slope, max_points, stack_nodes,
                 trims, trim_points, leaf_patch,
                 out_hit, out_t, out_pos, out_lo, out_hi, out_normal, out_uv, out_patch, out_effort):
     """Trace pixels [y0, y1) x [x0, x1). origins/dirs: (H, W, 3) float64 rays as traced.
 
-    detail_slope: threshold of detail per unit distance (adaptive criterion; 0 otherwise).
+    patches: the leaf arrays, as traverse.trace_ray takes them. detail_slope: threshold of detail
+    per unit distance (adaptive criterion; 0 otherwise).
     trims: the trim tuple (geometry.Geometry.trims_for); the kernel's patches are leaves, and
     leaf_patch maps them to scene patches for the output. Outputs follow the per-pixel contract
     (see render.Frame); uv is in the parameters of the patch's surface (NURBS), else of the patch.
     """
     slots = max_depth + 2
-    buf = np.zeros((slots, 4, max_points), ctrl.dtype)
+    buf = np.zeros((slots, 4, max_points), patches[0].dtype)
     box = np.zeros((slots, 6))
     mf = np.zeros((slots, MF_LEN))
     mi = np.zeros((slots, 5), np.int32)
@@ -41,9 +41,8 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
     trim_m = np.zeros((MAX_SPLIT_DEPTH + 4, 6))
     node_stack = np.zeros(stack_nodes, np.int32)
     node_tin = np.zeros(stack_nodes)
-    _render_pixels(y0, y1, x0, x1, origins, dirs,
-                   ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64, node_box, node_child,
-                   node_patch, criterion, param, split_mode, max_depth, bits, detail_slope,
+    _render_pixels(y0, y1, x0, x1, origins, dirs, patches, node_box, node_child, node_patch,
+                   criterion, param, split_mode, max_depth, bits, detail_slope,
                    trims, leaf_patch, buf, box, mf, mi, order, lray, np.zeros((4, max_points)),
                    trim_h, trim_m,
                    node_stack, node_tin, np.zeros(RAY_LEN), np.zeros(HIT_LEN), np.zeros((4, max_points)),
@@ -52,15 +51,14 @@ def render_tile(y0, y1, x0, x1, origins, dirs,
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # allocates nothing: no reference counts (see intersect)
-def _render_pixels(y0, y1, x0, x1, origins, dirs,
-                   ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64, node_box, node_child,
-                   node_patch, criterion, param, split_mode, max_depth, bits, detail_slope,
+def _render_pixels(y0, y1, x0, x1, origins, dirs, patches, node_box, node_child, node_patch,
+                   criterion, param, split_mode, max_depth, bits, detail_slope,
                    trims, leaf_patch, buf, box, mf, mi, order, lray, w64, trim_h, trim_m,
                    node_stack, node_tin, ray, hit, pts, scratch, work, normal,
                    out_hit, out_t, out_pos, out_lo, out_hi, out_normal, out_uv, out_patch, out_effort):
     """render_tile's pixel loop, on scratch it was given."""
     domain = trims[1]
-    patches = (ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64)
+    ctrl, pstart, deg_u, deg_v, rational = patches[:5]
     for y in range(y0, y1):
         for x in range(x0, x1):
             dx = dirs[y, x, 0]

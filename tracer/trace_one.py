@@ -83,10 +83,10 @@ class PixelTrace:
 def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angle: float,
                     pixel=(0, 0), capacity: int = TRACE_CAPACITY) -> PixelTrace:
     """Trace one ray with step recording; same kernel and options as the renderer."""
-    (ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64, node_box, node_child, node_patch, criterion,
-     param, split_mode,
+    (patches, node_box, node_child, node_patch, criterion, param, split_mode,
      max_depth, bits, slope, max_points, stack_nodes, trims, trim_points, leaf_patch) = kernel_args(
         geom, opts, pixel_angle)
+    ctrl, pstart, deg_u, deg_v, rational = patches[:5]
     buf, box, mf, mi, order, lray, w64 = scratch_for(max_points, max_depth, ctrl.dtype)
     node_stack = np.zeros(max(stack_nodes, 128), np.int32)
     node_tin = np.zeros(len(node_stack))
@@ -99,8 +99,8 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
     hit = np.zeros(HIT_LEN)
     make_ray(ray, o[0], o[1], o[2], d[0], d[1], d[2], 0.0, 0.0, slope * length)
     hit[H_TIN] = math.inf
-    patches = (ctrl, pstart, deg_u, deg_v, rational, frame, grid, eps, ctrl64, eps64)
-    effort = trace_ray(ray, hit, patches, node_box, node_child, node_patch, criterion, param, split_mode, max_depth, bits,
+    effort = trace_ray(ray, hit, patches, node_box, node_child, node_patch,
+                       criterion, param, split_mode, max_depth, bits,
                        buf, box, mf, mi, order, lray, w64, trims, *trim_scratch(trim_points),
                        node_stack, node_tin, trace)
     k = int(trace[2][0])
