@@ -13,11 +13,7 @@ import pytest
 import reference as ref
 from tracer import bezier
 from tracer.bezier import control_box, evaluate, normal_at, split_u, split_v
-try:  # the ray record and slab test moved to their own module
-    from tracer import ray as _ray
-except ImportError:
-    from tracer import intersect as _ray
-make_ray, slab, RAY_LEN = _ray.make_ray, _ray.slab, _ray.RAY_LEN
+from tracer.ray import RAY_LEN, make_ray, slab
 
 DTYPES = (np.float32, np.float64)
 EPS = {np.float32: 2.0 ** -24, np.float64: 2.0 ** -53}

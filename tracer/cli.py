@@ -18,6 +18,7 @@ from pathlib import Path
 
 from .errors import SceneError
 from .options import CRITERIA, PRECISIONS, SPLITS, Options, option_fields, parse_assignment
+from .stats import CHANNELS
 
 SWEPT = ("criterion", "split", "precision", "mode")  # bench sweeps these instead of taking flags
 
@@ -34,6 +35,16 @@ def parse_size(text: str):
     if w < 1 or h < 1 or w > 16384 or h > 16384:
         raise argparse.ArgumentTypeError(f"expected WxH with sides in 1..16384, got {text!r}")
     return w, h
+
+
+def parse_map(text: str):
+    """'CHANNEL=PNG' -> (channel, path), the channel one of stats.CHANNELS."""
+    name, sep, path = text.partition("=")
+    if not sep or not path:
+        raise argparse.ArgumentTypeError(f"expected CHANNEL=PNG, got {text!r}")
+    if name not in CHANNELS:
+        raise argparse.ArgumentTypeError(f"unknown channel {name!r} (known: {', '.join(CHANNELS)})")
+    return name, path
 
 
 def parse_pixel(text: str):
@@ -103,6 +114,22 @@ def _write_json(data, path):
         Path(path).write_text(text + "\n")
 
 
+def _compile_note(args, bar):
+    """on_compile for render: a step of its own while a kernel variant is compiled (or loaded
+    from the cache), so a first run does not sit silently at 0 %."""
+    desc = bar.desc
+
+    def note(variant, seconds=None):
+        from .variants import label
+        if seconds is None:
+            bar.set_description_str(f"compiling the {label(variant)} kernel")
+        else:
+            bar.set_description_str(desc)
+            if seconds > 1.0:
+                bar.write(f"compiled the {label(variant)} kernel in {seconds:.1f} s", file=sys.stderr)
+    return note if not args.quiet else None
+
+
 def _say(args, text):
     if not args.quiet:
         print(text, file=sys.stderr)
@@ -116,27 +143,33 @@ def cmd_render(args) -> int:
     from .shade import shade, to_png
     from .stats import channel_image, error_stats, frame_stats
 
-    _check_writable(args.output, args.aov, args.effort_map, args.error_map, args.stats)
+    maps = dict(args.map)
+    _check_writable(args.output, args.aov, args.effort_map, args.error_map, args.stats, *maps.values())
     scene = load_scene(args.scene)
     opts = options_from_args(args)
     width, height = args.size or scene.image_size or (512, 512)
     with _bar(len(tiles(width, height, opts.tile_size)), "render", args.quiet) as bar:
-        frame = render(scene, opts, size=(width, height), progress=bar.update)
+        frame = render(scene, opts, size=(width, height), progress=bar.update,
+                       on_compile=_compile_note(args, bar))
     to_png(shade(frame, scene, opts.mode), args.output)
     if args.aov:
         frame.save_npz(args.aov)
     if args.effort_map:
         channel_image("effort", frame).save(args.effort_map, format="PNG")
     ref = None
-    if args.error_map or args.stats:
+    if args.error_map or args.stats or any(CHANNELS[name].needs_reference for name in maps):
         with _bar(frame.tiles_total, "float64 reference", args.quiet) as bar:
-            ref = reference_frame(scene, frame, progress=bar.update)
+            ref = reference_frame(scene, frame, progress=bar.update, on_compile=_compile_note(args, bar))
     if args.error_map:
         channel_image("error", frame, ref).save(args.error_map, format="PNG")
+    for name, path in maps.items():
+        channel_image(name, frame, ref).save(path, format="PNG")
     fs = frame_stats(frame)
     if args.stats:
+        from .variants import compile_report
         _write_json({"scene": str(args.scene), "size": [width, height], "options": asdict(opts), **fs,
-                     "reference_time": ref.seconds, "error": error_stats(frame, ref)}, args.stats)
+                     "reference_time": ref.seconds, "error": error_stats(frame, ref),
+                     "kernels": compile_report()}, args.stats)
     _say(args, f"{args.output}: {width}x{height}, {fs['hits']} hits of {fs['rays']} rays in "
                f"{fs['time']:.3f} s, mean effort {fs['effort']['mean']:.1f} box tests/ray")
     return 0
@@ -212,8 +245,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--error-map", metavar="PNG",
                    help="L1 position error against the float64 reference of the same rays (holes red, "
                         "false hits magenta)")
-    p.add_argument("--stats", metavar="JSON", help="rays, hits, time, effort and error statistics "
-                   "(computes the float64 reference)")
+    p.add_argument("--map", action="append", default=[], type=parse_map, metavar="CHANNEL=PNG",
+                   help="any per-pixel channel on a colour map with a legend, e.g. nodes=nodes.png "
+                        f"(repeatable; channels: {', '.join(CHANNELS)})")
+    p.add_argument("--stats", metavar="JSON", help="rays, hits, time, effort and error statistics, the kernel "
+                   "variants compiled and their compile times (computes the float64 reference)")
     add_option_flags(p)
     _add_quiet(p)
     p.set_defaults(func=cmd_render)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bvh import Bvh, build_bvh
-from .intersect import max_depth_for
+from .subpatch import max_depth_for
 from .trim_kernel import segment_boxes
 
 PRECISION_DTYPE = {"f32": np.float32, "f64": np.float64}

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from .jit import njit
 
 # Ray record: origin, direction, 1/direction, t_min, threshold of detail T(t) = T0 + dT*t,
 # and the unit normals of two orthogonal planes that meet in the ray (for hull tests).

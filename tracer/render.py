@@ -15,17 +15,23 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .camera import View, primary_rays, view_of
+from .aggregate import bvh_nodes, walk_stack
 from .geometry import Geometry, prepare
+from .kernel_channels import CHANNEL_NAMES, Outputs, allocate
 from .options import CRITERION_CODE, SPLIT_CODE, Options
-from .tile_kernel import render_tile
+from .records import Leaves, Query, Trims, no_trace
+from .variants import compiled, label, variant_for
 
-AOV_NAMES = ("ray_origin", "ray_dir", "hit", "t", "position", "box_min", "box_max",
-             "normal", "uv", "patch", "effort")
+CONTRACT_NAMES = ("ray_origin", "ray_dir", "hit", "t", "position", "box_min", "box_max",
+                  "normal", "uv", "patch", "effort")
+# Every per-pixel array of a Frame: the rays, then the kernel channels.
+AOV_NAMES = CONTRACT_NAMES + tuple(n for n in CHANNEL_NAMES if n not in CONTRACT_NAMES)
 
 
 @dataclass
 class Frame:
-    """Per-pixel channels of one render, indexed [row, column, ...], row 0 at the top."""
+    """Per-pixel channels of one render, indexed [row, column, ...], row 0 at the top: the rays
+    and every kernel channel (kernel_channels.KERNEL_CHANNELS)."""
 
     ray_origin: np.ndarray
     ray_dir: np.ndarray
@@ -38,6 +44,8 @@ class Frame:
     uv: np.ndarray
     patch: np.ndarray
     effort: np.ndarray
+    nodes: np.ndarray | None = None
+    patches_tested: np.ndarray | None = None
     seconds: float = 0.0
     tiles_done: int = 0
     tiles_total: int = 0
@@ -46,18 +54,19 @@ class Frame:
     @classmethod
     def empty(cls, origins: np.ndarray, dirs: np.ndarray) -> "Frame":
         h, w = origins.shape[:2]
-        nan3 = np.full((h, w, 3), np.nan)
-        return cls(origins, dirs, np.zeros((h, w), bool), np.full((h, w), np.inf), nan3.copy(), nan3.copy(),
-                   nan3.copy(), np.zeros((h, w, 3)), np.full((h, w, 2), np.nan),
-                   np.full((h, w), -1, np.int32), np.zeros((h, w), np.int32))
+        return cls(origins, dirs, **allocate(h, w))
 
     @property
     def size(self):
         return self.hit.shape[1], self.hit.shape[0]
 
     def aovs(self) -> dict:
-        """The contract's per-pixel arrays (dtypes as specified)."""
-        return {name: getattr(self, name) for name in AOV_NAMES}
+        """The contract's per-pixel arrays (dtypes as specified), with every kernel channel computed."""
+        return {name: getattr(self, name) for name in AOV_NAMES if getattr(self, name) is not None}
+
+    def outputs(self) -> Outputs:
+        """The kernel's view of the channels."""
+        return Outputs(*(getattr(self, name) for name in CHANNEL_NAMES))
 
     def save_npz(self, path) -> None:
         np.savez_compressed(path, **self.aovs())
@@ -69,19 +78,30 @@ def tiles(width: int, height: int, size: int):
             for y in range(0, height, size) for x in range(0, width, size)]
 
 
-def kernel_args(geom: Geometry, opts: Options, pixel_angle: float):
-    """The scalars and arrays a tile kernel needs, derived once per frame."""
+@dataclass(frozen=True)
+class KernelInputs:
+    """What the kernels take for one frame: the scene records (Leaves, Trims, aggregate), the
+    query, the scratch sizes (threshold-of-detail slope, points, walk stack, trim points) and the
+    leaf-to-scene-patch map."""
+
+    scene: tuple
+    query: Query
+    sizes: tuple
+    leaf_patch: np.ndarray
+
+
+def kernel_inputs(geom: Geometry, opts: Options, pixel_angle: float) -> KernelInputs:
+    """The records a tile kernel needs, derived once per frame."""
     criterion = CRITERION_CODE[opts.criterion]
     param = {"float": 0.0, "fixed": opts.fixed_size, "adaptive": 0.0,
              "mantissa": float(opts.mantissa_ulps)}[opts.criterion]
     slope = opts.pixel_fraction * pixel_angle if opts.criterion == "adaptive" else 0.0
-    bvh = geom.bvh
-    patches = (geom.ctrl, geom.pstart, geom.deg_u, geom.deg_v, geom.rational, geom.frame, geom.grid, geom.eps,
-               geom.ctrl64, geom.eps64)  # as traverse.trace_ray takes them
-    return (patches, bvh.node_box, bvh.node_child, bvh.node_patch,
-            criterion, param, SPLIT_CODE[opts.split], geom.max_depth, geom.bits, slope,
-            max(geom.max_points, 16), bvh.depth + 2, geom.trims_for(opts.trims), geom.trim_points,
-            geom.leaf_patch)
+    leaves = Leaves(geom.ctrl, geom.pstart, geom.deg_u, geom.deg_v, geom.rational, geom.frame, geom.grid, geom.eps,
+                    geom.ctrl64, geom.eps64)
+    trims = Trims(*geom.trims_for(opts.trims))
+    query = Query(criterion, param, SPLIT_CODE[opts.split], geom.max_depth, geom.bits)
+    sizes = (float(slope), max(geom.max_points, 16), walk_stack(geom.bvh), max(geom.trim_points, 2))
+    return KernelInputs((leaves, trims, bvh_nodes(geom.bvh)), query, sizes, geom.leaf_patch)
 
 
 def thread_count(opts: Options) -> int:
@@ -90,11 +110,13 @@ def thread_count(opts: Options) -> int:
 
 def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float, *,
                on_tile=None, cancel: threading.Event | None = None, progress=None,
-               order=None) -> Frame:
+               order=None, on_compile=None, driver: str = "closest") -> Frame:
     """Trace given primary rays (H, W, 3) tile by tile; returns the filled Frame.
 
     on_tile(frame, rect) is called from the calling thread as each tile finishes;
-    progress(n) advances a progress bar; `order` optionally permutes the tiles.
+    progress(n) advances a progress bar; `order` optionally permutes the tiles;
+    on_compile(variant[, seconds]) is called before and after a kernel variant is compiled
+    or loaded from the cache (variants.compiled); driver: 'closest' hit, or 'any' (the first hit box found).
     """
     frame = Frame.empty(origins, dirs)
     h, w = frame.hit.shape
@@ -102,14 +124,18 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     if order is not None:
         rects = [rects[i] for i in order]
     frame.tiles_total = len(rects)
-    args = kernel_args(geom, opts, pixel_angle)
-    outs = (frame.hit, frame.t, frame.position, frame.box_min, frame.box_max, frame.normal,
-            frame.uv, frame.patch, frame.effort)
+    inputs = kernel_inputs(geom, opts, pixel_angle)
+    outs = frame.outputs()
+    trace = no_trace()
+    variant = variant_for(geom, opts, driver=driver)
+    args = (inputs.scene, inputs.query, inputs.sizes, inputs.leaf_patch, outs, trace)
+    kernel = compiled("tile", variant, ((0, 0, 0, 0), origins, dirs) + args, on_compile)
+    frame.extras["variant"] = label(variant)
 
     def work(rect):
         if cancel is not None and cancel.is_set():
             return None
-        render_tile(*rect, origins, dirs, *args, *outs)
+        kernel(rect, origins, dirs, *args)
         return rect
 
     start = time.perf_counter()

@@ -16,6 +16,7 @@ import numpy as np
 
 from . import colormap
 from .colormap import BACKGROUND, colorize, legend_image, with_legend
+from .kernel_channels import COUNTERS
 from .shade import patch_colours
 
 HOLE_RGB = (1.0, 0.0, 0.0)
@@ -68,13 +69,20 @@ def position_error(frame, ref) -> np.ndarray:
     return err
 
 
-def _effort(frame, ref=None):
-    e = frame.effort.astype(np.float64)
-    return np.where(e > 0, e, np.nan)  # 0: the ray met no patch box at all
+def _counter_values(name):
+    def values(frame, ref=None):
+        counts = getattr(frame, name)
+        if counts is None:
+            raise ValueError(f"channel {name!r}: this frame did not compute it")
+        e = counts.astype(np.float64)
+        return np.where(e > 0, e, np.nan)  # 0: the ray met nothing of this kind
+    return values
 
 
-def _effort_specials(frame, ref=None):
-    return [(frame.effort <= 0, BACKGROUND, "no patch box tested")]
+def _counter_specials(name, nothing):
+    def specials(frame, ref=None):
+        return [(getattr(frame, name) <= 0, BACKGROUND, nothing)]
+    return specials
 
 
 def _error_specials(frame, ref):
@@ -87,9 +95,11 @@ def _box_size(frame, ref=None):
     return np.where(frame.hit, np.sum(frame.box_max - frame.box_min, axis=-1), np.nan)
 
 
-register(Channel("effort", "effort", "box tests", "log", "inferno",
-                 "bounding-box tests spent on the primary ray (all candidate patches)", _effort,
-                 specials=_effort_specials))
+_NOTHING = {"effort": "no patch box tested", "nodes": "the ray missed the scene's bounds",
+            "patches_tested": "no patch searched"}
+for _kc in COUNTERS:  # the kernel's counters (kernel_channels), each a map of its own
+    register(Channel(_kc.name, _kc.label, _kc.units, "log", "inferno", _kc.help, _counter_values(_kc.name),
+                     specials=_counter_specials(_kc.name, _NOTHING.get(_kc.name, "zero"))))
 register(Channel("error", "position error", "world units, L1", "log", "viridis",
                  "L1 distance of the hit point from the float64 reference hit of the same ray",
                  position_error, needs_reference=True, specials=_error_specials))
@@ -151,9 +161,17 @@ def _summary(values) -> dict | None:
 
 
 def frame_stats(frame) -> dict:
-    """Rays, hits, trace time and effort min/mean/max over all rays and over hits."""
-    return {"rays": int(frame.hit.size), "hits": int(frame.hit.sum()), "time": float(frame.seconds),
-            "effort": _summary(frame.effort), "effort_hits": _summary(frame.effort[frame.hit])}
+    """Rays, hits, trace time, and each kernel counter's min/mean/max over all rays and over hits
+    (effort, effort_hits, nodes, nodes_hits, ...); the kernel variants compiled in this process."""
+    out = {"rays": int(frame.hit.size), "hits": int(frame.hit.sum()), "time": float(frame.seconds)}
+    for kc in COUNTERS:
+        counts = getattr(frame, kc.name)
+        if counts is not None:
+            out[kc.name] = _summary(counts)
+            out[f"{kc.name}_hits"] = _summary(counts[frame.hit])
+    if "variant" in frame.extras:
+        out["variant"] = frame.extras["variant"]
+    return out
 
 
 def ulp32(x) -> np.ndarray:

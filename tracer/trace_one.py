@@ -12,12 +12,13 @@ import numpy as np
 
 from .camera import View, primary_rays, view_of
 from .geometry import Geometry, prepare
-from .intersect import EVENT_NAMES, TRACE_F, TRACE_I
-from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN, make_ray
-from .traverse import hit_normal, scratch_for, trace_ray
-from .trim_kernel import trim_scratch
 from .options import Options
-from .render import kernel_args
+from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN, make_ray
+from .records import C_EFFORT, COUNTER_LEN, new_trace
+from .render import kernel_inputs
+from .search_steps import EVENT_NAMES
+from .hit_normal import hit_normal
+from .variants import compiled, variant_for
 
 TRACE_CAPACITY = 1 << 20
 
@@ -83,26 +84,24 @@ class PixelTrace:
 def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angle: float,
                     pixel=(0, 0), capacity: int = TRACE_CAPACITY) -> PixelTrace:
     """Trace one ray with step recording; same kernel and options as the renderer."""
-    (patches, node_box, node_child, node_patch, criterion, param, split_mode,
-     max_depth, bits, slope, max_points, stack_nodes, trims, trim_points, leaf_patch) = kernel_args(
-        geom, opts, pixel_angle)
-    ctrl, pstart, deg_u, deg_v, rational = patches[:5]
-    buf, box, mf, mi, order, lray, w64 = scratch_for(max_points, max_depth, ctrl.dtype)
-    node_stack = np.zeros(max(stack_nodes, 128), np.int32)
-    node_tin = np.zeros(len(node_stack))
-    trace = (np.zeros((capacity, TRACE_F)), np.zeros((capacity, TRACE_I), np.int32),
-             np.array([0, 0, -1], np.int64))  # steps, truncated, reported step
+    inputs = kernel_inputs(geom, opts, pixel_angle)
+    slope, max_points = inputs.sizes[:2]
+    lv = inputs.scene[0]
+    trace = new_trace(capacity)
     o = np.asarray(origin, np.float64)
     d = np.asarray(direction, np.float64)
     length = math.sqrt(float(d @ d))
     ray = np.zeros(RAY_LEN)
     hit = np.zeros(HIT_LEN)
+    counts = np.zeros(COUNTER_LEN, np.int64)
     make_ray(ray, o[0], o[1], o[2], d[0], d[1], d[2], 0.0, 0.0, slope * length)
     hit[H_TIN] = math.inf
-    effort = trace_ray(ray, hit, patches, node_box, node_child, node_patch,
-                       criterion, param, split_mode, max_depth, bits,
-                       buf, box, mf, mi, order, lray, w64, trims, *trim_scratch(trim_points),
-                       node_stack, node_tin, trace)
+    args = (ray, hit, inputs.scene, inputs.query, inputs.sizes, trace, counts)
+    compiled("ray", variant_for(geom, opts, trace=True), args)(*args)
+    effort = int(counts[C_EFFORT])
+    leaf_patch = inputs.leaf_patch
+    ctrl, pstart, deg_u, deg_v, rational = lv.ctrl, lv.pstart, lv.deg_u, lv.deg_v, lv.rational
+    trace = tuple(trace)
     k = int(trace[2][0])
     found = hit[H_TIN] < math.inf
     lo = hit[H_LO:H_LO + 3].copy()

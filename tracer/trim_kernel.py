@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from .jit import njit
 
 MAX_SPLIT_DEPTH = 96  # as tracer.trim: float64 boxes stop shrinking long before this
 

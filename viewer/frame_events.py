@@ -87,6 +87,9 @@ class EventSink:
         if r.phase != "error":
             r.phase = name
 
+    def _on_compiling(self, payload):
+        self.v.state.render.compiling = payload  # (variant label, since) or None when done
+
     def _on_coarse(self, payload):
         coarse, rgb, factor = payload
         w, h = self.v.state.image_size

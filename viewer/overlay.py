@@ -20,7 +20,7 @@ from .state import DEFAULT_CHANNEL
 def sub_frame(frame, rect):
     """The frame restricted to rect (y0, y1, x0, x1): views, no copies."""
     y0, y1, x0, x1 = rect
-    return replace(frame, **{n: getattr(frame, n)[y0:y1, x0:x1] for n in AOV_NAMES})
+    return replace(frame, **{n: getattr(frame, n)[y0:y1, x0:x1] for n in AOV_NAMES if getattr(frame, n) is not None})
 
 
 class Overlay:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from tracer.camera import primary_rays
-from tracer.intersect import EVENT_NAMES
+from tracer.search_steps import EVENT_NAMES
 from tracer.options import Options
 from tracer.plot import EVENT_COLOURS
 from tracer.trace_one import trace_ray_steps

@@ -108,6 +108,7 @@ class RenderState:
     ref_seconds: float = 0.0
     stats: dict | None = None
     error_stats: dict | None = None
+    compiling: tuple | None = None  # (kernel variant label, perf_counter since) while one compiles
 
 
 @dataclass

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from imgui_bundle import imgui, implot
 
-from tracer.intersect import EVENT_NAMES
+from tracer.search_steps import EVENT_NAMES
 from tracer.plot import EVENT_COLOURS, OPTIMUM_COLOUR
 
 from .picking import inspection_surface

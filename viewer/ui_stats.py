@@ -1,7 +1,11 @@
 """Stats panel: timing, progress, effort, and accuracy against float64 (Dammertz table 2.1)."""
 from __future__ import annotations
 
+import time
+
 from imgui_bundle import imgui
+
+from tracer.variants import compile_report
 
 ERROR_ROWS = (("max", "max error"), ("min", "min error"), ("mean", "mean error"), ("variance", "variance"),
               ("floor", "float32 floor"), ("ratio", "mean / floor"), ("inside_box", "ref in box"),
@@ -19,6 +23,9 @@ def ui_stats(state) -> bool:
         return False
     r = state.render
     imgui.text(f"UI {state.fps:.0f} frames/s   render: {r.phase}")
+    if r.compiling is not None:
+        name, since = r.compiling
+        imgui.text_colored((1.0, 0.8, 0.3, 1.0), f"compiling the {name} kernel: {time.perf_counter() - since:.0f} s")
     if r.tiles_total:
         imgui.progress_bar(r.tiles_done / r.tiles_total, (-1, 0), f"tiles {r.tiles_done}/{r.tiles_total}")
     if state.latencies:
@@ -27,7 +34,8 @@ def ui_stats(state) -> bool:
     if s:
         rate = s["rays"] / s["time"] if s["time"] > 0 else 0.0
         imgui.text(f"frame {s['time']:.3f} s, {rate / 1e3:.1f} k rays/s, {s['hits']}/{s['rays']} hits")
-        for key, label in (("effort", "effort (all rays)"), ("effort_hits", "effort (hits)")):
+        for key, label in (("effort", "effort (all rays)"), ("effort_hits", "effort (hits)"),
+                           ("nodes", "nodes visited"), ("patches_tested", "patches tested")):
             e = s.get(key)
             if e:
                 imgui.text(f"{label}: min {e['min']:.0f}  mean {e['mean']:.1f}  max {e['max']:.0f}")
@@ -44,4 +52,15 @@ def ui_stats(state) -> bool:
                 imgui.text(_fmt(e.get(key)))
             imgui.end_table()
         imgui.text_disabled("position error: L1 norm, world units, over pixels both hit")
+    _kernels()
     return False
+
+
+def _kernels():
+    """The kernel variants this process compiled (or loaded from the cache), with their times."""
+    report = compile_report()
+    if report and imgui.tree_node("kernel variants"):
+        for k in report:
+            how = "from the cache" if k["cached"] else "compiled"
+            imgui.text(f"{k['kernel']} {k['variant']}: {how} in {k['seconds']:.2f} s")
+        imgui.tree_pop()

@@ -144,6 +144,13 @@ class RenderWorker:
     def _phase(self, job, name):
         self.events.put(("phase", job.id, (name, time.perf_counter())))
 
+    def _on_compile(self, job):
+        """trace_rays' on_compile: which kernel variant is compiling, from when (None: done)."""
+        def note(variant, seconds=None):
+            from tracer.variants import label
+            self._emit("compiling", job, None if seconds is not None else (label(variant), time.perf_counter()))
+        return note
+
     def _run(self):
         _lower_priority()
         while True:
@@ -178,7 +185,7 @@ class RenderWorker:
         o, d = primary_rays(view, cw, ch, opts.precision)
         self._phase(job, "coarse")
         coarse = trace_rays(geom, opts.with_(tile_size=max(8, opts.tile_size)), o, d, view.pixel_angle(ch),
-                            cancel=cancel)
+                            cancel=cancel, on_compile=self._on_compile(job))
         if cancel.is_set():
             return self._emit("cancelled", job)
         self._emit("coarse", job, (coarse, shade(coarse, scene, mode, rect=(0, ch, 0, cw)), COARSE))
@@ -221,7 +228,8 @@ class RenderWorker:
 
         self._phase(job, "reference")
         start = time.perf_counter()
-        ref = reference_frame(scene, frame, geometry=geom64, cancel=cancel, on_tile=on_ref_tile)
+        ref = reference_frame(scene, frame, geometry=geom64, cancel=cancel, on_tile=on_ref_tile,
+                              on_compile=self._on_compile(job))
         if cancel.is_set() or ref.tiles_done < ref.tiles_total:
             return self._emit("cancelled", job)
         ref.seconds = time.perf_counter() - start

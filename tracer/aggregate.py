@@ -1,0 +1,93 @@
+"""Aggregates: what a ray visits before it searches patches.
+
+An aggregate kind has a record of flat arrays (built once per scene) and a walk factory,
+make_walk(search, any_hit) -> walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts),
+that visits the nodes the ray meets in near-to-far order and hands every patch of a visited
+leaf to the patch search (drivers.make_search), sharing the shrinking ray interval with it.
+The closest-hit walk runs to the end; the any-hit walk stops at the first hit. counts
+(records.C_*) gain the boxes the searches computed, the nodes visited and the patches
+searched. The kind is fixed at compile time (variants.Variant.accel): a kd-tree or a
+uniform grid is another record and another make_walk here, with no change to the drivers
+or the tile kernel.
+
+BVH: nodes in depth-first order, node 0 the root; a leaf lists its patches as
+items[first:first + count].
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+
+from .jit import njit, specialise
+from .ray import H_TIN, slab
+from .records import C_EFFORT, C_NODES, C_PATCHES
+
+BvhNodes = namedtuple("BvhNodes", "node_box node_child leaf_first leaf_count items")
+# The walk's fixed stack: node indices and their entry t.
+WalkStack = namedtuple("WalkStack", "nodes tin")
+
+
+def bvh_nodes(bvh) -> BvhNodes:
+    """The BVH's record for the kernels (bvh.Bvh: one patch per leaf)."""
+    leaf = bvh.node_child[:, 0] < 0
+    return BvhNodes(bvh.node_box, bvh.node_child, np.arange(len(leaf), dtype=np.int32),
+                    leaf.astype(np.int32), np.where(leaf, bvh.node_patch, -1).astype(np.int32))
+
+
+def walk_stack(bvh) -> int:
+    """Stack entries a walk of this BVH needs."""
+    return bvh.depth + 2
+
+
+def _bvh_walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts):
+    """The BVH walk template (specialised by make_bvh_walk)."""
+    node_box = agg.node_box
+    node_child = agg.node_child
+    t_max = hit[H_TIN]
+    ok, t_in, _ = slab(node_box[0], 0.0, 0.0, 0.0, ray)
+    if not ok:
+        return
+    stack.nodes[0] = 0
+    stack.tin[0] = t_in
+    top = 1
+    while top > 0:
+        top -= 1
+        node = stack.nodes[top]
+        if stack.tin[top] >= hit[H_TIN]:
+            continue
+        counts[C_NODES] += 1
+        left = node_child[node, 0]
+        if left < 0:
+            first = agg.leaf_first[node]
+            for k in range(first, first + agg.leaf_count[node]):
+                counts[C_PATCHES] += 1
+                counts[C_EFFORT] += search(agg.items[k], lv, trims, ray, hit, q, sl, trace)  # noqa: F821
+            if STOP_AT_FIRST and hit[H_TIN] < t_max:  # noqa: F821
+                return
+            continue
+        right = node_child[node, 1]
+        ok_l, tl, _ = slab(node_box[left], 0.0, 0.0, 0.0, ray)
+        ok_r, tr, _ = slab(node_box[right], 0.0, 0.0, 0.0, ray)
+        ok_l = ok_l and tl < hit[H_TIN]
+        ok_r = ok_r and tr < hit[H_TIN]
+        if ok_l and ok_r:
+            far_first = tl <= tr
+            stack.nodes[top] = right if far_first else left
+            stack.tin[top] = tr if far_first else tl
+            stack.nodes[top + 1] = left if far_first else right
+            stack.tin[top + 1] = tl if far_first else tr
+            top += 2
+        elif ok_l or ok_r:
+            stack.nodes[top] = left if ok_l else right
+            stack.tin[top] = tl if ok_l else tr
+            top += 1
+
+
+def make_bvh_walk(search, any_hit: bool):
+    """The BVH walk around one patch search (see the module docstring), inlined into its caller."""
+    walk = specialise(_bvh_walk, search=search, STOP_AT_FIRST=any_hit)
+    return njit(cache=True, nogil=True, _nrt=False, inline='always')(walk)
+
+
+WALKS = {"bvh": make_bvh_walk}

@@ -1,0 +1,152 @@
+"""`njit` for psrt's kernels: numba's, with an on-disk cache keyed by what a kernel depends on.
+
+numba reuses cached machine code while the decorated function's own file is unchanged, so a
+kernel that inlines helpers from another module would keep running stale code after an edit
+there, and a kernel specialised per variant (drivers.make_search) that calls another one is
+never found again (a pickled dispatcher differs from process to process). Here a kernel's
+cache key is its bytecode and constants, its specialised globals (see specialise: constants
+by value, kernels it calls by their own keys) and the sources of the
+psrt modules its module imports, transitively: editing one module recompiles what depends on
+it, nothing else.
+"""
+from __future__ import annotations
+
+import ast
+import hashlib
+import sys
+import types
+from functools import lru_cache
+from pathlib import Path
+
+import numba
+from numba.core.caching import FunctionCache
+from numba.core.registry import CPUDispatcher
+
+PACKAGE = Path(__file__).resolve().parent
+
+
+def _one_scope_copy_per_inline() -> None:
+    """numba's inliner deep-copies a callee's IR block by block, each block with a memo of its
+    own, so every block copies the callee's whole variable scope again: quadratic in the size
+    of a deeply inlined kernel (over a minute of the search's compile). Blocks of one function
+    share one scope, so one copy of it per inline is enough, and is what numba then expects
+    ("one function should only have one local scope"). Compilation holds numba's compiler
+    lock, so one table of the copies made during the current inline serves."""
+    import copy
+
+    from numba.core import inline_closurecall, ir
+
+    if getattr(ir.Scope, "_psrt_one_copy", False):
+        return
+    copies = {}
+
+    def deepcopy_scope(self, memo):
+        made = copies.get(id(self))
+        if made is not None and made[0] is self:
+            memo[id(self)] = made[1]
+            return made[1]
+        dup = ir.Scope.__new__(ir.Scope)
+        memo[id(self)] = dup
+        copies[id(self)] = (self, dup)
+        for key, value in self.__dict__.items():
+            setattr(dup, key, copy.deepcopy(value, memo))
+        return dup
+
+    inline_ir = inline_closurecall.InlineWorker.inline_ir
+
+    def inline_ir_one_scope_copy(self, *args, **kwargs):
+        try:
+            return inline_ir(self, *args, **kwargs)
+        finally:
+            copies.clear()
+
+    ir.Scope.__deepcopy__ = deepcopy_scope
+    ir.Scope._psrt_one_copy = True
+    inline_closurecall.InlineWorker.inline_ir = inline_ir_one_scope_copy
+
+
+_one_scope_copy_per_inline()
+
+
+@lru_cache(maxsize=None)
+def _imports(module_path: Path) -> tuple:
+    """The psrt modules (paths) a module imports relatively."""
+    tree = ast.parse(module_path.read_bytes())
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.level == 1:
+            base = module_path.parent
+            names = [node.module] if node.module else [a.name for a in node.names]
+            for name in names:
+                candidate = base.joinpath(*name.split(".")).with_suffix(".py")
+                if candidate.is_file():
+                    found.append(candidate)
+    return tuple(sorted(set(found)))
+
+
+@lru_cache(maxsize=None)
+def dependency_key(module_path: Path) -> str:
+    """Hash of a module's source and of every psrt module it imports, transitively."""
+    seen, todo = set(), [module_path]
+    while todo:
+        path = todo.pop()
+        if path not in seen:
+            seen.add(path)
+            todo.extend(_imports(path))
+    digest = hashlib.sha256()
+    for path in sorted(seen):
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def specialise(template, **constants):
+    """A copy of the Python function `template` that sees `constants` as module globals: numba
+    freezes globals at compile time, so flags become constants its branches are pruned by, and
+    kernels named there are called (or inlined) directly.
+
+    Globals, not a closure: numba deep-copies a closure's cell contents each time it inlines
+    the function, and a kernel held in a cell drags its whole compiled library along."""
+    namespace = dict(template.__globals__)
+    namespace.update(constants)
+    func = types.FunctionType(template.__code__, namespace, template.__name__, template.__defaults__)
+    func.__qualname__ = template.__qualname__
+    func.__doc__ = template.__doc__
+    func.__psrt_constants__ = constants
+    return func
+
+
+def _value_key(value) -> str:
+    if isinstance(value, CPUDispatcher):
+        return function_key(value.py_func)
+    return repr(value)
+
+
+def function_key(func) -> str:
+    """Bytecode, constants and specialised globals of a Python function, kernels among them by
+    their own keys."""
+    digest = hashlib.sha256(func.__code__.co_code)
+    digest.update(repr(func.__code__.co_consts).encode())
+    for name, value in sorted(getattr(func, "__psrt_constants__", {}).items()):
+        digest.update(f"{name}={_value_key(value)};".encode())
+    for cell in func.__closure__ or ():
+        digest.update(_value_key(cell.cell_contents).encode())
+    return digest.hexdigest()
+
+
+class _KernelCache(FunctionCache):
+    def _index_key(self, sig, codegen):
+        module = sys.modules[self._py_func.__module__]
+        return (sig, codegen.magic_tuple(), (function_key(self._py_func), dependency_key(Path(module.__file__))))
+
+
+def njit(*args, cache=False, **options):
+    """numba.njit; with cache=True, cached under the dependency-aware key above."""
+    def wrap(func):
+        dispatcher = numba.njit(**options)(func)
+        if cache and not numba.config.DISABLE_JIT:
+            dispatcher._cache = _KernelCache(func)
+        return dispatcher
+    if args and callable(args[0]):
+        return wrap(args[0])
+    return wrap

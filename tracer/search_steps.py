@@ -1,0 +1,312 @@
+"""The steps a patch search is made of (drivers.py puts them together): set up the root
+sub-patch, classify against the trims, judge the termination criterion, accept a hit box,
+subdivide, and record the trace. Each is a function of the sub-patch stack (records.Slots),
+the patch (records.PatchInfo) and a ray record.
+
+The float criterion is Dammertz's "the box stopped shrinking", applied to the box rounded
+outward onto the leaf's grid (geometry.grid_steps), its L1 diameter exact: the search ends
+where float32 numbers can no longer tell the boxes apart, and that grid box, moved to world
+coordinates, is the reported hit box. The other criteria are tested on the same grid box, so
+what they promise holds for what is reported. In float64 there is no grid.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from .jit import njit
+
+from .ray import H_DEPTH, H_DU, H_DV, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, R_DT, R_O, R_T0
+from .subpatch import (I_DEPTH, I_LAST, I_STALLED, I_STEP, I_TRIM, M_D, M_DPAR, M_E, M_EH, M_EW, M_GULP, M_MAG,
+                       M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, REFINE, RECENTRE, grid_l1, hull_hit,
+                       hull_off_plane, open_box, rational_bound, raw_box, recentre, refine, refine_rational,
+                       seam_plane, snap_down, snap_up, split, split_direction, ulp, widen, within_ulps)
+from .trim_kernel import rect_meets_loops, trim_inside
+
+# Termination criteria (codes as in options.CRITERION_CODE).
+FLOAT, FIXED, ADAPTIVE, MANTISSA = 0, 1, 2, 3
+# Trace events.
+MISS, PRUNED, SPLIT, HIT = 0, 1, 2, 3
+EVENT_NAMES = ("miss", "pruned", "split", "hit")
+GRID_PREFILTER = 64.0  # boxes wider than this many grid ulps certainly still shrink on the grid
+
+
+# ---- the trace ----------------------------------------------------------------------------
+
+@njit(cache=True, nogil=True, inline='always')
+def record(trace, sl, s, pa, lv, event):
+    """Append slot s's box (in world coordinates) to the trace; returns its step index
+    (-1 when the trace is full)."""
+    tf = trace.steps_f
+    k = trace.state[0]
+    if k >= tf.shape[0]:
+        trace.state[1] = 1  # truncated
+        return -1
+    trace.state[0] = k + 1
+    mf = sl.mf
+    for c in range(4):
+        tf[k, c] = mf[s, M_U0 + c]
+    for c in range(3):
+        tf[k, 4 + c] = sl.box[s, c] + mf[s, M_OX + c] + lv.frame[pa.p, c]
+        tf[k, 7 + c] = sl.box[s, 3 + c] + mf[s, M_OX + c] + lv.frame[pa.p, c]
+    tf[k, 10] = mf[s, M_D]
+    trace.steps_i[k, 0] = pa.p
+    trace.steps_i[k, 1] = sl.mi[s, I_DEPTH]
+    trace.steps_i[k, 2] = event
+    return k
+
+
+@njit(cache=True, nogil=True, inline='always')
+def set_event(trace, sl, s, event):
+    step = sl.mi[s, I_STEP]
+    if step >= 0:
+        trace.steps_i[step, 2] = event
+
+
+@njit(cache=True, nogil=True, inline='always')
+def open_child(sl, s, pa, lv, ray, t_max, trace, tracing):
+    """Test slot s's (widened) box against the ray; returns 1 if it stays a candidate."""
+    alive, ok = open_box(sl, s, ray, t_max)
+    if tracing:
+        event = SPLIT if alive else (PRUNED if ok else MISS)  # SPLIT stands until it is popped
+        sl.mi[s, I_STEP] = record(trace, sl, s, pa, lv, event)
+    return 1 if alive else 0
+
+
+# ---- the steps ----------------------------------------------------------------------------
+
+@njit(cache=True, nogil=True, inline='always')
+def enter_frame(sl, ray, lv, p):
+    """The ray moved into patch p's frame (float64), in the slots' ray record."""
+    lray = sl.lray
+    for k in range(lray.shape[0]):
+        lray[k] = ray[k]
+    for c in range(3):
+        lray[R_O + c] = ray[R_O + c] - lv.frame[p, c]
+    return lray
+
+
+@njit(cache=True, nogil=True, inline='always')
+def root(sl, pa, lv):
+    """The whole patch into the first slot, its box widened by the stored points' error."""
+    buf = sl.buf
+    mf = sl.mf
+    mi = sl.mi
+    s = sl.order[0]
+    p = pa.p
+    for c in range(4 if pa.rational else 3):
+        for k in range(pa.count):
+            buf[s, c, k] = lv.ctrl[c, pa.start + k]
+    mf[s, M_U0] = 0.0
+    mf[s, M_U1] = 1.0
+    mf[s, M_V0] = 0.0
+    mf[s, M_V1] = 1.0
+    mf[s, M_DPAR] = math.inf
+    for c in range(3):
+        mf[s, M_OX + c] = 0.0
+        mf[s, M_E + c] = lv.eps[p, c]
+    mi[s, I_DEPTH] = 0
+    mi[s, I_STALLED] = 0
+    mi[s, I_LAST] = -1
+    mi[s, I_TRIM] = 0
+    raw_box(sl, s, pa.count, pa.rational)
+    if pa.homogeneous:  # bounds against the float64 leaf
+        for c in range(4):
+            err = 0.0
+            for k in range(pa.count):
+                err = max(err, abs(np.float64(buf[s, c, k]) - lv.ctrl64[c, pa.start + k]))
+            if c < 3:
+                mf[s, M_EH + c] = err
+            else:
+                mf[s, M_EW] = err
+        rational_bound(sl, s, pa, lv.eps64)
+    widen(sl, s, pa.sub_scale)
+    frame_mag = 0.0
+    for k in range(6):
+        frame_mag = max(frame_mag, abs(sl.box[s, k]))
+    gulp = max(lv.grid[p, 0], lv.grid[p, 1], lv.grid[p, 2])
+    if gulp == 0.0:  # no grid (float64): its own ulps
+        gulp = ulp(frame_mag, pa.bits) if frame_mag > 0.0 else 0.0
+    mf[s, M_GULP] = gulp
+    return s
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _domain_point(dom, p, u, v):
+    return dom[p, 0] + u * (dom[p, 1] - dom[p, 0]), dom[p, 2] + v * (dom[p, 3] - dom[p, 2])
+
+
+@njit(cache=True, nogil=True, inline='always')
+def trim_state(sl, a, pa, trims):
+    """Slot a against its surface's trimming loops, tested every other level while undecided:
+    clear of every curve, one parity test decides the whole sub-patch. Returns 1 (wholly kept),
+    0 (undecided) or -1 (trimmed away as a whole)."""
+    state = sl.mi[a, I_TRIM]
+    surface = trims.patch_trim[pa.p]
+    if surface < 0 or state != 0 or sl.mi[a, I_DEPTH] % 2 != 0:
+        return state
+    mf = sl.mf
+    u0, v0 = _domain_point(trims.domain, pa.p, mf[a, M_U0], mf[a, M_V0])
+    u1, v1 = _domain_point(trims.domain, pa.p, mf[a, M_U1], mf[a, M_V1])
+    if rect_meets_loops(surface, min(u0, u1), max(u0, u1), min(v0, v1), max(v0, v1), trims.surf_seg_start,
+                        trims.seg_box):
+        return 0
+    if trim_inside(surface, 0.5 * (u0 + u1), 0.5 * (v0 + v1), trims.seg_points, trims.seg_start,
+                   trims.surf_seg_start, trims.start_inside, sl.trim_h, sl.trim_m):
+        sl.mi[a, I_TRIM] = 1
+        return 1
+    return -1
+
+
+@njit(cache=True, nogil=True, inline='always')
+def judge(sl, a, pa, lv, ray, q):
+    """Does slot a meet the termination criterion? Returns (stop, the criterion's diameter,
+    whether the box really shrank since its parent)."""
+    mf = sl.mf
+    d = mf[a, M_D]
+    depth = sl.mi[a, I_DEPTH]
+    criterion = q.criterion
+    param = q.param
+    # The criteria's measure: the grid box's L1 diameter (>= d) once d is near a threshold.
+    limit = GRID_PREFILTER * mf[a, M_GULP]
+    if criterion == FIXED:
+        limit = max(limit, param)
+    elif criterion == ADAPTIVE:
+        limit = max(limit, ray[R_T0] + ray[R_DT] * mf[a, M_TIN])
+    d_crit = grid_l1(sl, a, lv.grid, pa.p) if d <= limit else d
+    stop = depth >= q.max_depth
+    if criterion == FIXED:
+        stop = stop or d_crit <= param
+    elif criterion == ADAPTIVE:
+        stop = stop or d_crit <= ray[R_T0] + ray[R_DT] * mf[a, M_TIN]
+    elif criterion == MANTISSA:
+        stop = stop or within_ulps(sl, a, param, pa.bits, lv, pa.p)
+    # Float precision: the box did not shrink, even after halving the other direction too.
+    # "Shrink" means by more than rounding noise: in float64 (its own grid) the widened box
+    # otherwise keeps losing last bits forever. An interval that can no longer halve is spent.
+    # A box that is mostly error bound cannot get meaningfully smaller either.
+    # (Not so for rational slots in float32: re-derived from float64, their bound keeps falling
+    # with their weights' spread as they shrink.)
+    shrank = d_crit < mf[a, M_DPAR] * pa.shrink_factor and (d > 1.0625 * mf[a, M_W] or pa.homogeneous)
+    if (mf[a, M_U0] == mf[a, M_U1]) or (mf[a, M_V0] == mf[a, M_V1]):
+        stop = True  # the parameter interval cannot be halved any more
+    if not shrank and sl.mi[a, I_STALLED] == 1 and not (pa.rational and d > limit):
+        stop = True  # (a rational box can stall far above the float limit while extreme
+        # weights spread its control points: that is no loss of precision, split on)
+    return stop, d_crit, shrank
+
+
+@njit(cache=True, nogil=True, inline='always')
+def accept(sl, a, pa, ray, q, trims, has_trims):
+    """Is slot a, which met the criterion, a hit? Its control hull must meet the ray and its
+    parameter centre lie in the kept region. At the depth cap the precision is spent: accept
+    rather than reject (a rejection there would send the search through every branch)."""
+    if sl.mi[a, I_DEPTH] >= q.max_depth:
+        found = True
+    else:
+        found = hull_hit(sl, a, pa, ray)
+    if has_trims and found and trims.patch_trim[pa.p] >= 0 and sl.mi[a, I_TRIM] == 0:
+        mf = sl.mf
+        u, v = _domain_point(trims.domain, pa.p, 0.5 * (mf[a, M_U0] + mf[a, M_U1]), 0.5 * (mf[a, M_V0] + mf[a, M_V1]))
+        found = trim_inside(trims.patch_trim[pa.p], u, v, trims.seg_points, trims.seg_start, trims.surf_seg_start,
+                            trims.start_inside, sl.trim_h, sl.trim_m)
+    return found
+
+
+@njit(cache=True, nogil=True, inline='always')
+def report(hit, sl, a, pa, lv):
+    """Record slot a as the closest hit so far: its grid box, in world coordinates."""
+    mf = sl.mf
+    p = pa.p
+    hit[H_TIN] = mf[a, M_TIN]
+    hit[H_TOUT] = mf[a, M_TOUT]
+    for c in range(3):
+        o = mf[a, M_OX + c]
+        hit[H_LO + c] = snap_down(sl.box[a, c] + o, lv.grid[p, c]) + lv.frame[p, c]
+        hit[H_HI + c] = snap_up(sl.box[a, 3 + c] + o, lv.grid[p, c]) + lv.frame[p, c]
+    hit[H_U] = 0.5 * (mf[a, M_U0] + mf[a, M_U1])
+    hit[H_V] = 0.5 * (mf[a, M_V0] + mf[a, M_V1])
+    hit[H_DU] = mf[a, M_U1] - mf[a, M_U0]
+    hit[H_DV] = mf[a, M_V1] - mf[a, M_V0]
+    hit[H_PATCH] = p
+    hit[H_DEPTH] = sl.mi[a, I_DEPTH]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def trace_hit(trace, sl, a, hit):
+    """The hit step shows the reported grid box; steps are in creation order, this one is reported."""
+    step = sl.mi[a, I_STEP]
+    if step >= 0:
+        for c in range(6):
+            trace.steps_f[step, 4 + c] = hit[H_LO + c]
+        trace.state[2] = step
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _tighten(sl, a, pa, lv):
+    """Re-derive slot a from float64 when its error band nears its box, else re-centre it when
+    the box is much smaller than its coordinates (midpoints then round relative to the box)."""
+    box = sl.box
+    mf = sl.mf
+    ext = max(box[a, 3] - box[a, 0], box[a, 4] - box[a, 1], box[a, 5] - box[a, 2])
+    if pa.cumulative and (mf[a, M_E] + mf[a, M_E + 1] + mf[a, M_E + 2]) * REFINE > ext:
+        if pa.rational:
+            refine_rational(sl, a, pa, lv)
+        else:
+            refine(sl, a, pa, lv)
+    elif ext * RECENTRE < mf[a, M_MAG]:
+        recentre(sl, a, pa, lv.eps64)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def subdivide(sl, a, sp, pa, lv, ray, q, t_max, d_crit, shrank, trace, tracing, has_general):
+    """Halve slot a (stack position sp) and push the halves that stay candidates, the near one
+    on top. Returns the new stack height."""
+    mf = sl.mf
+    mi = sl.mi
+    order = sl.order
+    _tighten(sl, a, pa, lv)
+    if shrank:
+        direction = split_direction(sl, a, pa, ray, q.split_mode)
+    else:
+        direction = 1 - mi[a, I_LAST] if mi[a, I_LAST] >= 0 else 0
+    b = order[sp + 1]
+    split(sl, a, b, pa, direction, has_general)
+    stalled = 0 if shrank else 1
+    depth = mi[a, I_DEPTH]
+    mi[b, I_TRIM] = mi[a, I_TRIM]
+    for child in (a, b):
+        if pa.homogeneous:
+            rational_bound(sl, child, pa, lv.eps64)
+        widen(sl, child, pa.sub_scale)
+        mf[child, M_DPAR] = d_crit
+        mi[child, I_DEPTH] = depth + 1
+        mi[child, I_STALLED] = stalled
+        mi[child, I_LAST] = direction
+    alive_a = open_child(sl, a, pa, lv, ray, t_max, trace, tracing)
+    alive_b = open_child(sl, b, pa, lv, ray, t_max, trace, tracing)
+    # Push the far half below the near one; only live halves count. Selects, not branches:
+    # which half survives is as good as random, and positions sp, sp+1 keep slots {a, b}.
+    near_a = mf[a, M_TIN] <= mf[b, M_TIN]
+    far = b if near_a else a
+    near = a if near_a else b
+    alive_far = alive_b if near_a else alive_a
+    alive_near = alive_a if near_a else alive_b
+    if alive_far and alive_near:
+        # The ray meets both boxes: the control hulls (across two planes through the ray)
+        # are much thinner than the boxes, and one of them usually misses (a side branch saved).
+        # The plane along the new seam separates first (the half the ray does not cross is on
+        # its far side); the planes of the ray's own frame catch the rest.
+        w0, w1, w2 = seam_plane(sl, b, pa, direction, ray)
+        dropped = -1
+        if hull_off_plane(sl, far, pa, ray, w0, w1, w2) or not hull_hit(sl, far, pa, ray):
+            alive_far = 0
+            dropped = far
+        elif hull_off_plane(sl, near, pa, ray, w0, w1, w2) or not hull_hit(sl, near, pa, ray):
+            alive_near = 0
+            dropped = near
+        if tracing and dropped >= 0:
+            set_event(trace, sl, dropped, MISS)
+    order[sp] = far if alive_far else near
+    order[sp + 1] = near if alive_far else far
+    return sp + alive_far + alive_near

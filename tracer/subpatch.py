@@ -1,0 +1,463 @@
+"""Sub-patch operations: small functions of one slot of the sub-patch stack (records.Slots).
+
+A sub-patch is slot s of a thread's Slots: its control points buf[s] (working dtype, relative
+to the offset M_OX.. inside the patch's frame), its widened local box box[s], and per-slot
+metadata mf[s] (float64, columns M_*) and mi[s] (int32, columns I_*). The operations here
+split, bound, re-centre and re-derive sub-patches and test them against a ray; the drivers
+(drivers.py) are made of them.
+
+Where the arithmetic happens: every box is widened by the slot's error bound (M_E): the
+rounding of the stored control points plus that of every split and re-centring on the way
+down, so it contains the true surface and neighbouring patches cannot leave a crack whatever
+their frames. A sub-patch whose bound grows past 1/REFINE of its box is re-derived from the
+float64 leaf (refine). Ray-box slabs run in float64 on frame-relative = local + offset.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from .jit import njit
+
+from .bezier import (control_box, control_box_rational, restrict, restrict_err, split_u, split_u_cubic,
+                     split_u_linear, split_v, split_v_cubic, split_v_linear)
+from .ray import R_D, R_N1, R_N2, R_O, slab
+from .records import PatchInfo
+
+# Split heuristics (codes as in options.SPLIT_CODE).
+SPLIT_LENGTH, SPLIT_CROSS = 0, 1
+# Per-slot float metadata.
+M_U0, M_U1, M_V0, M_V1 = 0, 1, 2, 3  # parameter interval
+M_TIN, M_TOUT = 4, 5                  # slab interval of the box
+M_D = 6                               # L1 diameter of the widened local box
+M_DPAR = 7                            # the parent's criterion diameter
+M_OX = 8                              # 8, 9, 10: offset, patch frame = local + offset
+M_MAG = 11                            # largest |local coordinate| of the box
+M_GULP = 12                           # the coarsest grid step (float64: its ulp at the frame magnitude)
+M_W = 13                              # L1 size of the widening (error bounds) in M_D
+M_E = 14                              # 14, 15, 16: bound on |stored - true surface| per axis
+M_EH = 17                             # 17, 18, 19: rational, float32: bound on |stored - float64
+M_EW = 20                             # leaf| of the homogeneous w x, w y, w z, and of w (M_EW)
+MF_LEN = 21
+# Per-slot int metadata: depth, stalled (the box did not shrink), last split (0 u, 1 v, -1 none),
+# trace step (-1 none), trim state (0 undecided, 1 wholly in the kept region).
+I_DEPTH, I_STALLED, I_LAST, I_STEP, I_TRIM = 0, 1, 2, 3, 4
+MI_LEN = 5
+
+RECENTRE = 16.0     # re-centre once the box is this many times smaller than its coordinates
+REFINE = 64.0       # re-derive from float64 once the data error is over 1/64 of the box
+SUB_ERR_BITS = 8    # float64: a split's rounding stays below 2^-(bits - 8) of the magnitude
+# _COLD: re-centring and re-deriving happen a few times a ray; they are called, not inlined, as
+# numba's inlining of the search's deep call tree costs compile time more than linearly.
+
+
+def max_depth_for(precision_bits: int) -> int:
+    """Subdivision depth cap: both directions down to the precision, with room to spare."""
+    return 2 * (precision_bits + 16)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def patch_info(lv, p, bits, has_rational, has_cubic, has_linear):
+    """The PatchInfo of leaf p (has_*: the kernel variant's patch kinds, compile-time flags)."""
+    m = lv.deg_u[p]
+    n = lv.deg_v[p]
+    rational = has_rational and lv.rational[p] != 0
+    cumulative = bits < 53
+    return PatchInfo(p, m, n, (m + 1) * (n + 1), lv.pstart[p], rational,
+                     has_cubic and m == 3 and n == 3 and not rational,
+                     has_linear and m == 1 and n == 1 and not rational,
+                     bits, cumulative, cumulative and rational,
+                     0.0 if cumulative else math.ldexp(1.0, SUB_ERR_BITS - bits),
+                     math.ldexp(1.0, -bits) if cumulative else 0.0,
+                     1.0 - math.ldexp(1.0, 4 - bits))  # a real decrease: more than 16 ulps
+
+
+@njit(cache=True, nogil=True, inline='always')
+def ulp(x, bits):
+    """Spacing of `bits`-bit floats at |x| (x != 0)."""
+    return math.ldexp(1.0, math.frexp(x)[1] - bits)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def snap_down(q, g):
+    """The largest multiple of the grid step g <= q (exact: g is a power of two); q itself when
+    there is no grid (g = 0, float64)."""
+    return math.floor(q / g) * g if g > 0.0 else q
+
+
+@njit(cache=True, nogil=True, inline='always')
+def snap_up(q, g):
+    return math.ceil(q / g) * g if g > 0.0 else q
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _to_working(q, bits):
+    """q rounded to the working precision."""
+    return q if bits >= 53 else np.float64(np.float32(q))
+
+
+@njit(cache=True, nogil=True, inline='always')
+def widen(sl, s, sub_scale):
+    """Widen the raw control box of slot s by its error bound (M_E); sets M_MAG, M_W and M_D.
+
+    sub_scale: 0 where M_E carries the subdivision's rounding (float32, integral patches), else
+    2^-(bits - SUB_ERR_BITS), a per-level bound relative to the magnitude."""
+    box = sl.box
+    mf = sl.mf
+    mag = 0.0
+    for k in range(6):
+        mag = max(mag, abs(box[s, k]))
+    mf[s, M_MAG] = mag
+    sub = mag * sub_scale
+    widening = 0.0
+    for c in range(3):
+        e = mf[s, M_E + c] + sub
+        box[s, c] -= e
+        box[s, 3 + c] += e
+        widening += 2.0 * e
+    mf[s, M_W] = widening
+    mf[s, M_D] = (box[s, 3] - box[s, 0]) + (box[s, 4] - box[s, 1]) + (box[s, 5] - box[s, 2])
+
+
+@njit(cache=True, nogil=True, inline='always')
+def rational_bound(sl, s, pa, eps64):
+    """M_E of a rational slot from its homogeneous bounds (M_EH, M_EW), before widening: the
+    stored surface N~/W~ differs from the float64 leaf's N/W by (dN - S~ dW) / W per axis, with
+    |dN| <= M_EH, |dW| <= M_EW, |S~| <= the raw box and W >= the least stored weight - M_EW;
+    plus the leaf's own bound (eps64). Infinite if the weights' bound reaches the weights."""
+    buf = sl.buf
+    box = sl.box
+    mf = sl.mf
+    w_min = math.inf
+    for k in range(pa.count):
+        w_min = min(w_min, np.float64(buf[s, 3, k]))
+    denom = w_min - mf[s, M_EW]
+    for c in range(3):
+        x = max(abs(box[s, c]), abs(box[s, 3 + c]))
+        e = (mf[s, M_EH + c] + x * mf[s, M_EW]) / denom * (1.0 + 2.0 ** -40) if denom > 0.0 else math.inf
+        mf[s, M_E + c] = eps64[pa.p, c] + e
+
+
+@njit(cache=True, nogil=True, inline='always')
+def grid_l1(sl, s, grid, p):
+    """L1 diameter of slot s's box rounded outward onto the leaf's grid (exact)."""
+    total = 0.0
+    for c in range(3):
+        o = sl.mf[s, M_OX + c]
+        total += snap_up(sl.box[s, 3 + c] + o, grid[p, c]) - snap_down(sl.box[s, c] + o, grid[p, c])
+    return total
+
+
+@njit(cache=True, nogil=True, inline='always')
+def within_ulps(sl, s, ulps, bits, lv, p):
+    """Are the grid box's world corners within `ulps` units in the last place (of `bits`-bit
+    floats) of each other, per coordinate?"""
+    for c in range(3):
+        o = sl.mf[s, M_OX + c]
+        lo = snap_down(sl.box[s, c] + o, lv.grid[p, c]) + lv.frame[p, c]
+        hi = snap_up(sl.box[s, 3 + c] + o, lv.grid[p, c]) + lv.frame[p, c]
+        mag = max(abs(lo), abs(hi))
+        if mag > 0.0 and hi - lo > ulps * ulp(mag, bits):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True, inline='always')
+def raw_box(sl, s, count, is_rational):
+    if is_rational:
+        control_box_rational(sl.buf, s, count, sl.box)
+    else:
+        control_box(sl.buf, s, count, sl.box)
+
+
+@njit(cache=True, nogil=True, _nrt=False)  # rare: a call, not inlined (see _COLD)
+def recentre(sl, s, pa, eps64):
+    """Shift slot s's control points so its box is centred near 0 (the shift rounded to the
+    working precision: for points close to the shift the subtraction is exact, Sterbenz; the
+    others round by at most half an ulp of the result, added to the slot's error bound)."""
+    buf = sl.buf
+    box = sl.box
+    mf = sl.mf
+    count = pa.count
+    for c in range(3):
+        shift = _to_working(0.5 * (box[s, c] + box[s, 3 + c]), pa.bits)
+        offset = mf[s, M_OX + c]
+        if offset != 0.0:  # a multiple of the offset's float64 ulp: offset + shift stays exact
+            q = math.ldexp(1.0, math.frexp(offset)[1] - 53)
+            shift = math.floor(shift / q + 0.5) * q
+        if pa.rational:
+            big = 0.0
+            w_max = 0.0
+            for k in range(count):  # w x - shift w, with one rounding
+                buf[s, c, k] = float(buf[s, c, k]) - shift * float(buf[s, 3, k])
+                big = max(big, abs(np.float64(buf[s, c, k])))
+                w_max = max(w_max, np.float64(buf[s, 3, k]))
+            # The weights' error moves by the shift; the product and difference round once each.
+            mf[s, M_EH + c] += abs(shift) * mf[s, M_EW] + (pa.round_unit + 2.0 ** -52) * (big + abs(shift) * w_max)
+        else:
+            for k in range(count):
+                buf[s, c, k] = float(buf[s, c, k]) - shift
+        mf[s, M_OX + c] += shift
+    raw_box(sl, s, count, pa.rational)
+    if pa.homogeneous:
+        rational_bound(sl, s, pa, eps64)
+    elif not pa.rational:
+        for c in range(3):
+            mf[s, M_E + c] += pa.round_unit * max(abs(box[s, c]), abs(box[s, 3 + c]))
+    widen(sl, s, pa.sub_scale)
+
+
+@njit(cache=True, nogil=True, _nrt=False)  # rare: a call, not inlined (see _COLD)
+def refine(sl, s, pa, lv):
+    """Re-derive slot s's (integral) control points from the float64 leaf over its parameter
+    interval, stored relative to a new offset at the box centre: their error bound drops from the
+    leaf's rounding to the sub-patch's own, so the error band no longer outgrows the box.
+
+    Without it, grazing rays meet the band of the float32 leaf data ahead of the true crossing."""
+    buf = sl.buf
+    mf = sl.mf
+    w64 = sl.w64
+    ctrl64 = lv.ctrl64
+    count = pa.count
+    start = pa.start
+    for c in range(3):
+        for k in range(count):
+            w64[c, k] = ctrl64[c, start + k]
+    restrict(w64, pa.m, pa.n, 3, mf[s, M_U0], mf[s, M_U1], mf[s, M_V0], mf[s, M_V1])
+    rel = restrict_err(pa.m, pa.n)
+    for c in range(3):
+        lo = math.inf
+        hi = -math.inf
+        big = 0.0
+        for k in range(count):
+            lo = min(lo, w64[c, k])
+            hi = max(hi, w64[c, k])
+            big = max(big, abs(ctrl64[c, start + k]))
+        offset = _to_working(0.5 * (lo + hi), pa.bits)
+        err = 0.0
+        for k in range(count):
+            local = w64[c, k] - offset  # rounds by at most an ulp of itself (counted below)
+            buf[s, c, k] = local
+            err = max(err, abs(np.float64(buf[s, c, k]) - local) + abs(local) * 2.0 ** -52)
+        mf[s, M_OX + c] = offset
+        mf[s, M_E + c] = err + big * rel + lv.eps64[pa.p, c]
+    raw_box(sl, s, count, False)
+    widen(sl, s, 0.0)  # the bound carries every rounding (float32, integral)
+
+
+@njit(cache=True, nogil=True, _nrt=False)  # rare: a call, not inlined (see _COLD)
+def refine_rational(sl, s, pa, lv):
+    """refine for rational slots: the homogeneous float64 leaf restricted to the slot's interval,
+    moved to a new offset at the centre of its (Euclidean) box, stored with fresh bounds."""
+    buf = sl.buf
+    mf = sl.mf
+    w64 = sl.w64
+    ctrl64 = lv.ctrl64
+    count = pa.count
+    start = pa.start
+    for c in range(4):
+        for k in range(count):
+            w64[c, k] = ctrl64[c, start + k]
+    restrict(w64, pa.m, pa.n, 4, mf[s, M_U0], mf[s, M_U1], mf[s, M_V0], mf[s, M_V1])
+    rel = restrict_err(pa.m, pa.n)
+    big_w = 0.0
+    w_err = 0.0
+    for k in range(count):
+        big_w = max(big_w, abs(ctrl64[3, start + k]))
+        buf[s, 3, k] = w64[3, k]
+        w_err = max(w_err, abs(np.float64(buf[s, 3, k]) - w64[3, k]))
+    w_bound = w_err + big_w * rel  # |stored weight - the float64 leaf's|
+    mf[s, M_EW] = w_bound
+    for c in range(3):
+        lo = math.inf
+        hi = -math.inf
+        big = 0.0
+        for k in range(count):
+            q = w64[c, k] / w64[3, k]
+            lo = min(lo, q)
+            hi = max(hi, q)
+            big = max(big, abs(ctrl64[c, start + k]))
+        offset = _to_working(0.5 * (lo + hi), pa.bits)
+        err = 0.0
+        for k in range(count):
+            local = w64[c, k] - offset * w64[3, k]  # two roundings of at most an ulp (below)
+            buf[s, c, k] = local
+            err = max(err, abs(np.float64(buf[s, c, k]) - local)
+                      + (abs(local) + abs(offset * w64[3, k])) * 2.0 ** -52)
+        mf[s, M_OX + c] = offset
+        mf[s, M_EH + c] = err + big * rel + abs(offset) * w_bound
+    raw_box(sl, s, count, True)
+    rational_bound(sl, s, pa, lv.eps64)
+    widen(sl, s, 0.0)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def corner(buf, s, k, c, rational):
+    """Coordinate c of control point k in slot s, homogenised for rational patches."""
+    if rational:
+        return np.float64(buf[s, c, k]) / np.float64(buf[s, 3, k])  # numba: float(float32) stays float32
+    return np.float64(buf[s, c, k])
+
+
+@njit(cache=True, nogil=True, inline='always')
+def hull_off_plane(sl, s, pa, ray, n0, n1, n2):
+    """Is the convex hull of slot s's control points (widened by the error bounds) wholly on one
+    side of the plane through the ray with unit normal (n0, n1, n2), normal to the ray?"""
+    buf = sl.buf
+    mf = sl.mf
+    sub = mf[s, M_MAG] * pa.sub_scale
+    rel0 = mf[s, M_OX] - ray[R_O]
+    rel1 = mf[s, M_OX + 1] - ray[R_O + 1]
+    rel2 = mf[s, M_OX + 2] - ray[R_O + 2]
+    offset = rel0 * n0 + rel1 * n1 + rel2 * n2
+    lo = math.inf
+    hi = -math.inf
+    for k in range(pa.count):
+        dist = (corner(buf, s, k, 0, pa.rational) * n0 + corner(buf, s, k, 1, pa.rational) * n1
+                + corner(buf, s, k, 2, pa.rational) * n2)
+        lo = min(lo, dist)
+        hi = max(hi, dist)
+    slack = ((mf[s, M_E] + sub) * abs(n0) + (mf[s, M_E + 1] + sub) * abs(n1) + (mf[s, M_E + 2] + sub) * abs(n2)
+             + 2.0 ** -51 * (abs(rel0) + abs(rel1) + abs(rel2) + max(abs(lo), abs(hi))))
+    return offset + lo > slack or offset + hi < -slack
+
+
+@njit(cache=True, nogil=True, inline='always')
+def hull_hit(sl, s, pa, ray):
+    """Does the ray meet the convex hull of slot s's control points (widened by the error
+    bounds)? Tested as the hull's extent across two planes that meet in the ray, so a ray
+    clipping a corner of a thin, tilted sub-patch's box is not taken for a hit."""
+    for base in (R_N1, R_N2):
+        if hull_off_plane(sl, s, pa, ray, ray[base], ray[base + 1], ray[base + 2]):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True, inline='always')
+def seam_plane(sl, s, pa, direction, ray):
+    """Unit normal of the plane through the ray along the seam a split just made (slot s's
+    u = 0 edge after a u split, its v = 0 edge after a v split): the two halves lie on either
+    side of it up to their curvature, so it separates the ray from the half it does not cross.
+    (0, 0, 0) if the seam is parallel to the ray or collapsed."""
+    buf = sl.buf
+    rational = pa.rational
+    end = pa.n * (pa.m + 1) if direction == 0 else pa.m
+    ex = corner(buf, s, end, 0, rational) - corner(buf, s, 0, 0, rational)
+    ey = corner(buf, s, end, 1, rational) - corner(buf, s, 0, 1, rational)
+    ez = corner(buf, s, end, 2, rational) - corner(buf, s, 0, 2, rational)
+    dx = ray[R_D]
+    dy = ray[R_D + 1]
+    dz = ray[R_D + 2]
+    wx = dy * ez - dz * ey
+    wy = dz * ex - dx * ez
+    wz = dx * ey - dy * ex
+    length = math.sqrt(wx * wx + wy * wy + wz * wz)
+    if not length > 0.0:
+        return 0.0, 0.0, 0.0
+    return wx / length, wy / length, wz / length
+
+
+@njit(cache=True, nogil=True, inline='always')
+def split_direction(sl, s, pa, ray, split_mode):
+    """0 to halve u, 1 to halve v: the longer parameter direction ('length'), or the one
+    whose edges are least parallel to the ray ('cross', Dammertz 2.5.2).
+
+    Both opposite edges are measured, so a collapsed edge (teapot lid) cannot hide
+    its direction."""
+    buf = sl.buf
+    m = pa.m
+    n = pa.n
+    rational = pa.rational
+    last = pa.count - 1  # P[m][n]
+    lu = 0.0
+    lv = 0.0
+    for e in range(2):
+        # u edges: P[0][j] -> P[m][j] for j = 0, n; v edges: P[i][0] -> P[i][n] for i = 0, m.
+        ua = 0 if e == 0 else n * (m + 1)
+        ub = m if e == 0 else last
+        va = 0 if e == 0 else m
+        vb = n * (m + 1) if e == 0 else last
+        ex = corner(buf, s, ub, 0, rational) - corner(buf, s, ua, 0, rational)
+        ey = corner(buf, s, ub, 1, rational) - corner(buf, s, ua, 1, rational)
+        ez = corner(buf, s, ub, 2, rational) - corner(buf, s, ua, 2, rational)
+        gx = corner(buf, s, vb, 0, rational) - corner(buf, s, va, 0, rational)
+        gy = corner(buf, s, vb, 1, rational) - corner(buf, s, va, 1, rational)
+        gz = corner(buf, s, vb, 2, rational) - corner(buf, s, va, 2, rational)
+        if split_mode == SPLIT_CROSS:
+            dx = ray[R_D]
+            dy = ray[R_D + 1]
+            dz = ray[R_D + 2]
+            ex, ey, ez = ey * dz - ez * dy, ez * dx - ex * dz, ex * dy - ey * dx
+            gx, gy, gz = gy * dz - gz * dy, gz * dx - gx * dz, gx * dy - gy * dx
+        lu = max(lu, ex * ex + ey * ey + ez * ez)
+        lv = max(lv, gx * gx + gy * gy + gz * gz)
+    return 0 if lu > lv else 1
+
+
+@njit(cache=True, nogil=True, inline='always')
+def split(sl, a, b, pa, direction, has_general):
+    """Halve slot a in u (direction 0) or v (1) into a and b: bounds, control points, raw boxes
+    and parameter intervals (has_general: the variant has patches that are neither bicubic nor
+    bilinear, or rational ones).
+
+    Each of the split's de Casteljau levels rounds a point by at most half an ulp of the
+    largest coordinate, and the errors of earlier levels stay in the points."""
+    buf = sl.buf
+    box = sl.box
+    mf = sl.mf
+    count = pa.count
+    levels = (pa.m if direction == 0 else pa.n) * pa.round_unit
+    if pa.rational:  # the same for the homogeneous coordinates (M_E follows from them later)
+        for c in range(4):
+            big = 0.0
+            for k in range(count):
+                big = max(big, abs(np.float64(buf[a, c, k])))
+            col = M_EH + c if c < 3 else M_EW
+            mf[a, col] += levels * big
+            mf[b, col] = mf[a, col]
+    else:
+        for c in range(3):
+            mf[b, M_E + c] = mf[a, M_E + c] + levels * max(abs(box[a, c]), abs(box[a, 3 + c]))
+            mf[a, M_E + c] = mf[b, M_E + c]
+    if pa.cubic:
+        if direction == 0:
+            split_u_cubic(buf, a, b, box)
+        else:
+            split_v_cubic(buf, a, b, box)
+    elif pa.linear:
+        if direction == 0:
+            split_u_linear(buf, a, b, box)
+        else:
+            split_v_linear(buf, a, b, box)
+    elif has_general:
+        ncoord = 4 if pa.rational else 3
+        if direction == 0:
+            split_u(buf, a, b, pa.m, pa.n, ncoord)
+        else:
+            split_v(buf, a, b, pa.m, pa.n, ncoord)
+        raw_box(sl, a, count, pa.rational)
+        raw_box(sl, b, count, pa.rational)
+    for c in range(4):
+        mf[b, M_U0 + c] = mf[a, M_U0 + c]
+    if direction == 0:
+        mid = 0.5 * (mf[a, M_U0] + mf[a, M_U1])
+        mf[a, M_U1] = mid
+        mf[b, M_U0] = mid
+    else:
+        mid = 0.5 * (mf[a, M_V0] + mf[a, M_V1])
+        mf[a, M_V1] = mid
+        mf[b, M_V0] = mid
+    for c in range(3):
+        mf[b, M_OX + c] = mf[a, M_OX + c]
+    mf[b, M_GULP] = mf[a, M_GULP]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def open_box(sl, s, ray, t_max):
+    """Slab-test slot s's widened box (its interval into M_TIN, M_TOUT); is it still a candidate
+    before t_max?"""
+    mf = sl.mf
+    ok, t_in, t_out = slab(sl.box[s], mf[s, M_OX], mf[s, M_OX + 1], mf[s, M_OX + 2], ray)
+    mf[s, M_TIN] = t_in
+    mf[s, M_TOUT] = t_out
+    return ok & (t_in < t_max), ok

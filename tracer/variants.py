@@ -1,0 +1,87 @@
+"""Kernel variants: the compile-time key of the tile and ray kernels, and their compilation.
+
+A variant fixes what a scene needs: precision, which patch kinds occur (rational; integral
+bicubic, bilinear or other degrees), trims present, tracing on or off, the query driver
+(closest or any hit) and the aggregate kind. Its flags are constants of the kernels' closures,
+so an integral bicubic scene never compiles or branches through rational or trimming code.
+Kernels are built once per variant in a process and compiled (or loaded from numba's disk
+cache) explicitly before the first tile, so compiling is its own, timed step: COMPILED
+records how long each variant took and whether it came from the cache.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from collections import namedtuple
+
+import numba
+import numpy as np
+
+Variant = namedtuple("Variant", "precision rational cubic linear general trims trace driver accel")
+
+COMPILED: dict = {}  # (kernel kind, Variant) -> {"seconds": s, "cached": bool}
+_BUILT: dict = {}
+_LOCK = threading.Lock()
+
+
+def variant_for(geom, opts, *, trace: bool = False, driver: str = "closest", accel: str = "bvh") -> Variant:
+    """The variant a render of `geom` with `opts` needs."""
+    m = np.asarray(geom.deg_u)
+    n = np.asarray(geom.deg_v)
+    rational = np.asarray(geom.rational) != 0
+    integral = ~rational
+    cubic = integral & (m == 3) & (n == 3)
+    linear = integral & (m == 1) & (n == 1)
+    trimmed = bool(opts.trims) and bool(np.any(np.asarray(geom.patch_trim) >= 0))
+    return Variant(geom.precision, bool(rational.any()), bool(cubic.any()), bool(linear.any()),
+                   bool((integral & ~cubic & ~linear).any()), trimmed, bool(trace), driver, accel)
+
+
+def label(variant: Variant) -> str:
+    """A short readable name, e.g. 'f32 bicubic+bilinear closest bvh'."""
+    kinds = [k for k, on in (("rational", variant.rational), ("bicubic", variant.cubic),
+                             ("bilinear", variant.linear), ("general", variant.general)) if on]
+    extras = [k for k, on in (("trims", variant.trims), ("trace", variant.trace)) if on]
+    return " ".join([variant.precision, "+".join(kinds) or "empty"] + extras + [variant.driver, variant.accel])
+
+
+def _kernel(kind: str, variant: Variant):
+    from .tile_kernel import make_ray_kernel, make_tile_kernel
+    factory = {"tile": make_tile_kernel, "ray": make_ray_kernel}[kind]
+    key = (kind, variant._replace(precision=""))  # one dispatcher serves both precisions
+    with _LOCK:
+        if key not in _BUILT:
+            _BUILT[key] = factory(variant)
+        return _BUILT[key]
+
+
+def compiled(kind: str, variant: Variant, args: tuple, on_compile=None):
+    """The kernel `kind` ('tile' or 'ray') of `variant`, compiled for the types of `args`.
+
+    The first request for a variant in a process compiles it or loads it from the disk cache;
+    on_compile(variant) is called before that work starts and on_compile(variant, seconds)
+    when it is done (progress messages)."""
+    kernel = _kernel(kind, variant)
+    record_key = (kind, variant)
+    if numba.config.DISABLE_JIT or record_key in COMPILED:
+        return kernel
+    signature = tuple(numba.typeof(a) for a in args)
+    with _LOCK:
+        if record_key in COMPILED:
+            return kernel
+        if on_compile is not None:
+            on_compile(variant)
+        hits_before = sum(kernel.stats.cache_hits.values())
+        start = time.perf_counter()
+        kernel.compile(signature)
+        COMPILED[record_key] = {"seconds": time.perf_counter() - start,
+                                "cached": sum(kernel.stats.cache_hits.values()) > hits_before}
+        if on_compile is not None:
+            on_compile(variant, COMPILED[record_key]["seconds"])
+    return kernel
+
+
+def compile_report() -> list:
+    """[{kernel, variant, seconds, cached}] for every variant compiled in this process."""
+    return [{"kernel": kind, "variant": label(v), "seconds": round(r["seconds"], 3), "cached": r["cached"]}
+            for (kind, v), r in COMPILED.items()]
