@@ -15,8 +15,12 @@ import pytest
 from PIL import Image
 
 from tracer.cli import main
+from tracer.colormap import to_uint8
 from tracer.options import Options
+from tracer.render import render
 from tracer.scene import load_scene
+from tracer.shade import MODES, shade
+from tracer.stats import HOLE_RGB
 from tracer.trace_one import trace_pixel
 
 REPO = Path(__file__).resolve().parents[1]
@@ -94,8 +98,6 @@ def test_error_map_marks_holes(tmp_path, monkeypatch):
     none): the CLI's error map paints exactly those pixels in the documented hole colour, its
     legend shows that colour's swatch, and --stats counts them."""
     import tracer.render
-    from tracer.colormap import to_uint8
-    from tracer.stats import HOLE_RGB
     real_reference = tracer.render.reference_frame
     holes = []
 
@@ -127,6 +129,11 @@ def test_render_modes(tmp_path, mode):
     via_set = tmp_path / f"{mode}-set.png"
     assert run("render", TEAPOT, "-o", via_set, "--size", "32x24", "--set", f"mode={mode}", "-q") == 0
     assert np.array_equal(np.asarray(Image.open(path)), np.asarray(Image.open(via_set)))
+    # the mode reaches the image: it is shade() of that mode, not of another
+    scene = load_scene(TEAPOT)
+    frame = render(scene, Options(), size=(32, 24))
+    expected = {m: to_uint8(shade(frame, scene, m)) for m in MODES}
+    assert [m for m in MODES if np.array_equal(np.asarray(Image.open(path).convert("RGB")), expected[m])] == [mode]
 
 
 @pytest.mark.parametrize("flags", [
