@@ -1,9 +1,10 @@
 """Slow, obviously right references for the kernels (STYLE rule 6).
 
 Everything here is plain numpy or exact rational arithmetic, written for
-clarity, never for speed: Bernstein sums straight from the definition, de
-Casteljau on whole grids, an exact slab test, and a float64 ray-patch
-intersection by interval subdivision followed by Newton polishing.
+clarity, never for speed: Bernstein sums straight from the definition,
+sub-patches by blossoming (not de Casteljau's midpoints, which the kernels and
+tracer.geometry use), an exact slab test, and a float64 ray-patch intersection
+by interval subdivision followed by Newton polishing.
 
 Control grids are arrays P[i, j, xyz] (i along u, j along v), unlike the
 kernels' flat point order k = j*(m+1) + i; `grid` and `flat` convert.
@@ -13,6 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from fractions import Fraction
+from functools import lru_cache
 
 import numpy as np
 
@@ -83,25 +85,35 @@ def normal(P, u: float, v: float) -> np.ndarray:
     return c / np.linalg.norm(c)
 
 
-# ---- de Casteljau -----------------------------------------------------------------
+# ---- sub-patches by blossoming -------------------------------------------------------
 
-def de_casteljau(points, t):
-    """Split a control polygon (first axis) at t: (left half, right half). Works on object
-    arrays of Fractions too, so it can be exact."""
-    pts = [points[k] for k in range(len(points))]
-    left, right = [pts[0]], [pts[-1]]
-    while len(pts) > 1:
-        pts = [(1 - t) * a + t * b for a, b in zip(pts[:-1], pts[1:])]
-        left.append(pts[0])
-        right.append(pts[-1])
-    return np.stack(left), np.stack(right[::-1])
+@lru_cache(maxsize=None)
+def restriction_matrix(n: int, t0, t1) -> np.ndarray:
+    """(n+1, n+1) object matrix M: the control points of a degree-n Bezier curve P restricted to
+    [t0, t1] are Q = M @ P. Q_k is the blossom of the curve at (t0 x (n - k), t1 x k), and the
+    blossom of B_i^n there is sum_a B_a^(n-k)(t0) B_(i-a)^k(t1) (a of the i factors t taken at
+    t0, the others at t1). Exact when t0 and t1 are Fractions."""
+    M = np.empty((n + 1, n + 1), dtype=object)
+    for k in range(n + 1):
+        for i in range(n + 1):
+            M[k, i] = sum(bernstein(n - k, a, t0) * bernstein(k, i - a, t1)
+                          for a in range(max(0, i - k), min(i, n - k) + 1))
+    return M
+
+
+def restrict(P, axis: int, t0, t1) -> np.ndarray:
+    """The control points of P (any array, Bernstein coefficients along `axis`) on [t0, t1] of that
+    parameter. An object array of Fractions is restricted exactly (t0, t1 taken as Fractions)."""
+    P = np.asarray(P)
+    exact = P.dtype == object
+    M = restriction_matrix(P.shape[axis] - 1, *((Fraction(t0), Fraction(t1)) if exact else (t0, t1)))
+    Q = np.tensordot(M if exact else M.astype(np.float64), np.moveaxis(P, axis, 0), axes=(1, 0))
+    return np.moveaxis(Q, 0, axis)
 
 
 def split(P, axis: int, t=0.5):
     """Split a grid P[i, j, :] at t along u (axis 0) or v (axis 1): (lower, upper)."""
-    Pm = np.moveaxis(np.asarray(P), axis, 0)
-    lo, hi = de_casteljau(Pm, t)
-    return np.moveaxis(lo, 0, axis), np.moveaxis(hi, 0, axis)
+    return restrict(P, axis, 0, t), restrict(P, axis, t, 1)
 
 
 def exact(P) -> np.ndarray:
@@ -166,18 +178,6 @@ def _ray_frame(d):
     return np.stack([e1, np.cross(w, e1), w])
 
 
-def _split_all(Q, axis):
-    """Halve a stack of grids Q[k, i, j, c] along u (axis 1) or v (axis 2) at 1/2."""
-    Qm = np.moveaxis(Q, axis, 0)
-    left, right = [Qm[0]], [Qm[-1]]
-    level = Qm
-    while len(level) > 1:
-        level = 0.5 * (level[:-1] + level[1:])
-        left.append(level[0])
-        right.append(level[-1])
-    return np.moveaxis(np.stack(left), 0, axis), np.moveaxis(np.stack(right[::-1]), 0, axis)
-
-
 def _newton(P, o, d, frame, u, v, scale, iters=60):
     """Solve (S(u, v) - o) . e_k = 0 (k = 1, 2) from (u, v); returns (u, v) or None.
 
@@ -231,12 +231,12 @@ def intersect_patch(P, origin, direction, t_min=0.0, levels=12, max_leaves=512) 
         stack, iv = stack[keep], iv[keep]
         if len(stack) == 0 or level == levels or len(stack) > max_leaves:
             break
-        a, b = _split_all(stack, 1)
+        a, b = split(stack, 1)
         mid = 0.5 * (iv[:, 0] + iv[:, 1])
         iv = np.concatenate([np.column_stack([iv[:, 0], mid, iv[:, 2:]]),
                              np.column_stack([mid, iv[:, 1], iv[:, 2:]])])
         stack = np.concatenate([a, b])
-        a, b = _split_all(stack, 2)
+        a, b = split(stack, 2)
         mid = 0.5 * (iv[:, 2] + iv[:, 3])
         iv = np.concatenate([np.column_stack([iv[:, :2], iv[:, 2], mid]),
                              np.column_stack([iv[:, :2], mid, iv[:, 3]])])

@@ -16,6 +16,7 @@ import reference as ref
 from tracer.camera import View
 from tracer.options import Options
 from tracer.geometry import Geometry, prepare
+from tracer.nurbs import split_bezier
 from tracer.render import Frame, reference_frame, render, trace_rays
 from tracer.scene import Scene, scene_from_dict
 
@@ -103,8 +104,12 @@ def random_patch(rng, m=3, n=3, size=2.0) -> np.ndarray:
 
 
 def split_pair(P, axis: int, t: float):
-    """The two patches of P split at parameter t along u (axis 0) or v (axis 1), in float64."""
-    return ref.split(np.asarray(P, np.float64), axis, t)
+    """The two patches of P split at parameter t along u (axis 0) or v (axis 1), in float64.
+
+    A scene builder, not a reference: de Casteljau (tracer.nurbs) gives both halves the same
+    boundary points bit for bit, and keeps the seam scenes' stored digests where they are."""
+    lower, upper = split_bezier(np.moveaxis(np.asarray(P, np.float64), axis, 0), t)
+    return np.moveaxis(lower, 0, axis), np.moveaxis(upper, 0, axis)
 
 
 # ---- views -----------------------------------------------------------------------------

@@ -6,6 +6,7 @@ slot buffers buf[slot, xyz, k] with k = j*(m+1) + i.
 import functools
 import inspect
 import math
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -104,6 +105,29 @@ def degrees(rng, count, top=15):
 
 
 # ---- split ---------------------------------------------------------------------------
+
+def exact_point(P, u, v):
+    """S(u, v) of an object grid of Fractions, exactly (the Bernstein sum, no numpy floats)."""
+    m, n = P.shape[0] - 1, P.shape[1] - 1
+    return sum(ref.bernstein(m, i, u) * ref.bernstein(n, j, v) * P[i, j] for i in range(m + 1) for j in range(n + 1))
+
+
+def test_reference_restriction_is_exact():
+    """The reference's sub-patches (blossoming, in Fractions) are the parent exactly: the
+    restriction to [t0, t1] at s is the parent at t0 + s (t1 - t0); both halves of a split too."""
+    rng = np.random.default_rng(5)
+    for m, n in degrees(rng, 8, top=6):
+        P = ref.exact(rng.integers(-50, 51, (m + 1, n + 1, 3)).astype(np.float64))
+        axis = int(rng.integers(2))
+        t0, t1 = sorted(Fraction(int(k), 17) for k in rng.choice(18, 2, replace=False))
+        lower, upper = ref.split(P, axis, t1)
+        for sub, a, b in ((ref.restrict(P, axis, t0, t1), t0, t1), (lower, 0, t1), (upper, t1, 1)):
+            for s, w in ((Fraction(1, 3), Fraction(5, 7)), (Fraction(0), Fraction(1)), (Fraction(1), Fraction(2, 9))):
+                t = a + s * (b - a)
+                got = exact_point(sub, s, w) if axis == 0 else exact_point(sub, w, s)
+                want = exact_point(P, t, w) if axis == 0 else exact_point(P, w, t)
+                assert np.array_equal(got, want), f"degree {m}x{n}, axis {axis}, [{a}, {b}] at {s}"
+
 
 @pytest.mark.parametrize("axis", [0, 1])
 def test_split_halves_reproduce_parent(axis):

@@ -15,7 +15,13 @@ import pytest
 from PIL import Image
 
 from tracer.cli import main
+from tracer.colormap import to_uint8
 from tracer.options import Options
+from tracer.render import render
+from tracer.scene import load_scene
+from tracer.shade import MODES, shade
+from tracer.stats import HOLE_RGB
+from tracer.trace_one import trace_pixel
 
 REPO = Path(__file__).resolve().parents[1]
 TEAPOT = str(REPO / "sample_models" / "teapot.json")
@@ -87,12 +93,32 @@ def test_render_all_outputs(tmp_path, capsys):
     assert "48x40" in capsys.readouterr().err  # the summary line
 
 
-def test_error_map_marks_holes(tmp_path):
-    """An adaptive render against the reference: the map is written whatever the error is."""
-    assert run("render", TEAPOT, "-o", tmp_path / "i.png", "--size", "32x32", "--criterion", "adaptive",
-               "--pixel-fraction", "2", "--error-map", tmp_path / "e.png", "-q") == 0
-    img = np.asarray(Image.open(tmp_path / "e.png").convert("RGB"))
-    assert img.shape[1] >= 32 and img.shape[0] > 32
+def test_error_map_marks_holes(tmp_path, monkeypatch):
+    """A reference that hits where the render missed (holes made on purpose: a correct render has
+    none): the CLI's error map paints exactly those pixels in the documented hole colour, its
+    legend shows that colour's swatch, and --stats counts them."""
+    import tracer.render
+    real_reference = tracer.render.reference_frame
+    holes = []
+
+    def reference_with_holes(scene, frame, **kwargs):
+        ref = real_reference(scene, frame, **kwargs)
+        missed = np.argwhere(~frame.hit)
+        for y, x in missed[[0, len(missed) // 2, -1]]:
+            holes.append((int(y), int(x)))
+            ref.hit[y, x], ref.patch[y, x], ref.t[y, x] = True, 0, 1.0
+            ref.position[y, x] = ref.box_min[y, x] = ref.box_max[y, x] = ref.ray_origin[y, x] + ref.ray_dir[y, x]
+        return ref
+
+    monkeypatch.setattr(tracer.render, "reference_frame", reference_with_holes)
+    error_map, stats = tmp_path / "e.png", tmp_path / "s.json"
+    assert run("render", TEAPOT, "-o", tmp_path / "i.png", "--size", "32x32", "--error-map", error_map,
+               "--stats", stats, "-q") == 0
+    img = np.asarray(Image.open(error_map).convert("RGB"))
+    is_hole = np.all(img == to_uint8(np.asarray(HOLE_RGB)), axis=-1)
+    assert sorted(map(tuple, np.argwhere(is_hole[:32, :32]))) == sorted(holes)  # the map: top-left 32x32
+    assert is_hole[32:].any(), "the legend shows no hole swatch"
+    assert json.loads(stats.read_text())["error"]["holes"] == len(holes) == 3
 
 
 @pytest.mark.parametrize("mode", Options.__dataclass_fields__["mode"].metadata["choices"])
@@ -103,6 +129,11 @@ def test_render_modes(tmp_path, mode):
     via_set = tmp_path / f"{mode}-set.png"
     assert run("render", TEAPOT, "-o", via_set, "--size", "32x24", "--set", f"mode={mode}", "-q") == 0
     assert np.array_equal(np.asarray(Image.open(path)), np.asarray(Image.open(via_set)))
+    # the mode reaches the image: it is shade() of that mode, not of another
+    scene = load_scene(TEAPOT)
+    frame = render(scene, Options(), size=(32, 24))
+    expected = {m: to_uint8(shade(frame, scene, m)) for m in MODES}
+    assert [m for m in MODES if np.array_equal(np.asarray(Image.open(path).convert("RGB")), expected[m])] == [mode]
 
 
 @pytest.mark.parametrize("flags", [
@@ -172,9 +203,21 @@ def test_trace_json_and_plot(tmp_path, capsys):
     tr = json.loads(out.read_text())
     assert {"pixel", "hit", "patch", "t", "position", "box_min", "box_max", "steps"} <= set(tr)
     assert tr["hit"] and tr["patch"] >= 0 and tr["t"] > 0
+    steps = tr["steps"]
     step_keys = {"patch", "depth", "u", "v", "box_min", "box_max", "diameter", "event"}
-    assert all(step_keys <= set(s) and s["event"] in ("miss", "pruned", "split", "hit") for s in tr["steps"])
-    last_hit = tr["steps"][tr["hit_step"]]  # the step that produced the reported box
+    assert all(step_keys <= set(s) for s in steps)
+    # the steps of a direct trace of the same pixel (same kernel, same ray: bit for bit)
+    want = trace_pixel(load_scene(TEAPOT), Options(), 20, 18, size=(40, 32))
+    events = [s["event"] for s in steps]
+    assert events == want.events and tr["hit_step"] == want.hit_step()
+    assert np.array_equal([s["box_min"] + s["box_max"] for s in steps], want.steps_f[:, 4:10])
+    assert [[s["patch"], s["depth"]] for s in steps] == want.steps_i[:, :2].tolist()
+    # the summary counts what the steps say; effort is one box test per step
+    summary = tr["summary"]
+    assert summary["events"] == {k: events.count(k) for k in ("miss", "pruned", "split", "hit")}
+    assert summary["boxes"] == len(steps) == tr["effort"] and summary["events"]["split"] > 0
+    assert summary["max_depth"] == max(s["depth"] for s in steps) and summary["truncated"] is False
+    last_hit = steps[tr["hit_step"]]  # the step that produced the reported box
     assert last_hit["event"] == "hit"
     assert last_hit["box_min"] == tr["box_min"] and last_hit["box_max"] == tr["box_max"]
     assert last_hit["patch"] == tr["patch"]
@@ -182,7 +225,10 @@ def test_trace_json_and_plot(tmp_path, capsys):
     assert np.allclose(centre, tr["position"], rtol=0, atol=1e-12)
     assert png_size(plot) == (960, 500)
     err = capsys.readouterr().err
-    assert "pixel 20,18: hit patch" in err and "boxes" in err
+    n = summary["events"]
+    assert (f"pixel 20,18: hit patch {tr['patch']} at t=" in err and f"box {tr['hit_step']};" in err
+            and f"{len(steps)} boxes ({n['split']} split, {n['miss']} miss, {n['pruned']} pruned, {n['hit']} hit), "
+                f"effort {tr['effort']}" in err)
 
 
 def test_trace_to_stdout_and_miss(capsys, horizon_scene):
@@ -193,6 +239,7 @@ def test_trace_to_stdout_and_miss(capsys, horizon_scene):
     captured = capsys.readouterr()
     tr = json.loads(captured.out)
     assert tr["pixel"] == [2, 1] and tr["hit"] is False and tr["patch"] == -1 and tr["position"] is None
+    assert tr["hit_step"] == -1 and all(s["event"] != "hit" for s in tr["steps"])
     assert "miss" in captured.err
 
 

@@ -14,9 +14,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
-from PIL import Image
 
 REPO = Path(__file__).resolve().parents[1]
 TEAPOT = REPO / "sample_models" / "teapot.json"
@@ -83,22 +81,3 @@ def run_view(xvfb, args, tmp_path, env=None, timeout=RUN_TIMEOUT):
     if data is None:
         raise AssertionError(f"viewer wrote no status (exit {proc.returncode}):\n{proc.stderr[-4000:]}")
     return proc.returncode, data, proc.stderr
-
-
-def read_png(path) -> np.ndarray:
-    return np.asarray(Image.open(path).convert("RGB"))
-
-
-def compare_images(actual: np.ndarray, expected: np.ndarray, out_dir: Path, name: str, tol: int):
-    """Assert |actual - expected| <= tol (8-bit levels) everywhere; on failure write
-    actual, expected and an amplified difference next to each other (STYLE rule 7)."""
-    assert actual.shape == expected.shape, f"{name}: size {actual.shape} != expected {expected.shape}"
-    diff = np.abs(actual.astype(int) - expected.astype(int))
-    if diff.max() > tol:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        Image.fromarray(actual).save(out_dir / f"{name}-actual.png")
-        Image.fromarray(expected).save(out_dir / f"{name}-expected.png")
-        Image.fromarray(np.clip(diff * 16, 0, 255).astype(np.uint8)).save(out_dir / f"{name}-diff.png")
-        bad = int(np.sum(diff.max(axis=-1) > tol))
-        raise AssertionError(f"{name}: {bad} pixels differ by more than {tol} levels (max {diff.max()}); "
-                             f"images written to {out_dir}")

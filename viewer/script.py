@@ -20,18 +20,22 @@ from .state import assign
 
 EXIT_OK, EXIT_BAD_ARGS, EXIT_TIMEOUT, EXIT_CLICK = 0, 2, 3, 4
 MID_RENDER = "mid-render"
+AFTER_RENDER = "after-render"
+WHENS = (MID_RENDER, AFTER_RENDER)
 
 
 def parse_at(text: str):
-    """'N:name=value' (at UI frame N) or 'mid-render:name=value' (once full tiles are arriving)."""
+    """'N:name=value' (at UI frame N), 'mid-render:name=value' (once full tiles are arriving) or
+    'after-render:name=value' (once the frame is traced, however long that takes)."""
     when, sep, assignment = text.partition(":")
     if not sep or "=" not in assignment:
-        raise ValueError(f"--at expects FRAME:option=value or {MID_RENDER}:option=value, got {text!r}")
-    if when != MID_RENDER:
+        raise ValueError(f"--at expects FRAME:option=value or {'/'.join(WHENS)}:option=value, got {text!r}")
+    if when not in WHENS:
         try:
             when = int(when)
         except ValueError:
-            raise ValueError(f"--at {text!r}: {when!r} is neither a frame number nor {MID_RENDER!r}") from None
+            raise ValueError(f"--at {text!r}: {when!r} is neither a frame number nor one of "
+                             f"{', '.join(WHENS)}") from None
     return when, assignment
 
 
@@ -50,7 +54,7 @@ CLICK_SETTLE_FRAMES = 8
 @dataclass
 class Script:
     sets: list = field(default_factory=list)        # "name=value", before the first render
-    at: list = field(default_factory=list)          # (frame or MID_RENDER, "name=value")
+    at: list = field(default_factory=list)          # (frame, MID_RENDER or AFTER_RENDER, "name=value")
     click: tuple | None = None                      # image pixel (column, row)
     load: str | None = None                         # opened once the first render has finished
     screenshot: str | None = None                   # the view (image, overlay, outlines), PNG
@@ -84,7 +88,8 @@ class Script:
         late = r.phase in ("reference", "done", "error")
         for item in list(self._pending_at):
             when, text = item
-            if (when == MID_RENDER and (mid or late)) or (when != MID_RENDER and st.frame_count >= when):
+            if ((when == MID_RENDER and (mid or late)) or (when == AFTER_RENDER and late)
+                    or (when not in WHENS and st.frame_count >= when)):
                 self._pending_at.remove(item)
                 try:
                     st.opts, st.settings = assign(st.opts, st.settings, text)
