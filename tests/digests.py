@@ -105,14 +105,16 @@ def _geometry(name, precision):
 
 def scene_digests(name: str) -> dict | None:
     """variant key -> channel -> digest for one catalogue scene (None if it is not available)."""
-    scene, view, size = _scene(name)
-    if scene is None:
+    if _scene(name)[0] is None:
         return None
-    out = {}
-    for key, opts in variants():
-        frame = render(scene, opts, size=size, view=view, geometry=_geometry(name, opts.precision))
-        out[key] = {c: channel_digest(getattr(frame, c)) for c in CHANNELS}
-    return out
+    return {key: variant_digests(name, opts) for key, opts in variants()}
+
+
+def variant_digests(name: str, opts: Options) -> dict:
+    """channel -> digest for one catalogue scene (it must be available) rendered with opts."""
+    scene, view, size = _scene(name)
+    frame = render(scene, opts, size=size, view=view, geometry=_geometry(name, opts.precision))
+    return {c: channel_digest(getattr(frame, c)) for c in CHANNELS}
 
 
 def compute_all(progress=True) -> dict:

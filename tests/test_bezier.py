@@ -10,9 +10,10 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+from numba import config as numba_config
 
 import reference as ref
-from tracer import bezier
+from tracer import bezier, simd
 from tracer.bezier import control_box, evaluate, normal_at, split_u, split_v
 from tracer.ray import RAY_LEN, make_ray, slab
 
@@ -40,15 +41,20 @@ def call(fn, **available):
     The kernel signatures grow (rational patches added `ncoord`, `rational`, a 4th row of
     work space); binding by name keeps these tests about behaviour, not argument order.
     """
-    names = list(inspect.signature(fn.py_func).parameters)
+    names = list(inspect.signature(python_function(fn)).parameters)
     missing = [k for k in names if k not in available]
     if missing:
-        raise TypeError(f"{fn.py_func.__name__}{tuple(names)}: the test has no value for {missing}")
+        raise TypeError(f"{python_function(fn).__name__}{tuple(names)}: the test has no value for {missing}")
     return fn(*(available[k] for k in names))
 
 
+def python_function(fn):
+    """A kernel's Python source function (with NUMBA_DISABLE_JIT=1 the kernel is that function)."""
+    return getattr(fn, "py_func", fn)
+
+
 def _takes_box(fn):
-    return "box" in inspect.signature(fn.py_func).parameters
+    return "box" in inspect.signature(python_function(fn)).parameters
 
 
 FAST_SPLITS = {(3, 3): (bezier.split_u_cubic, bezier.split_v_cubic),
@@ -129,6 +135,7 @@ def test_reference_restriction_is_exact():
                 assert np.array_equal(got, want), f"degree {m}x{n}, axis {axis}, [{a}, {b}] at {s}"
 
 
+@pytest.mark.interpreted
 @pytest.mark.parametrize("axis", [0, 1])
 def test_split_halves_reproduce_parent(axis):
     """Lower half at s is the parent at s/2, upper half at s the parent at (1+s)/2 (float64)."""
@@ -146,6 +153,7 @@ def test_split_halves_reproduce_parent(axis):
                                            err_msg=f"degree {m}x{n}, axis {axis}, (s, w) = ({s}, {w})")
 
 
+@pytest.mark.interpreted
 @pytest.mark.parametrize("dtype", DTYPES)
 @pytest.mark.parametrize("axis", [0, 1])
 def test_split_is_exact_when_representable(dtype, axis):
@@ -161,6 +169,7 @@ def test_split_is_exact_when_representable(dtype, axis):
         assert np.array_equal(hi, ehi.astype(np.float64)), f"degree {m}x{n}"
 
 
+@pytest.mark.interpreted
 @pytest.mark.parametrize("dtype", DTYPES)
 def test_split_error_within_level_ulps(dtype):
     """General inputs: each level of midpoints rounds once, so a point of level k is within
@@ -178,6 +187,7 @@ def test_split_error_within_level_ulps(dtype):
             assert err <= 0.5 * k * ulp + 1e-300, f"degree {m}x{n}: {err / ulp:.2f} ulps"
 
 
+@pytest.mark.interpreted
 @pytest.mark.parametrize("dtype", DTYPES)
 @pytest.mark.parametrize("axis", [0, 1])
 @pytest.mark.parametrize("degree", list(FAST_SPLITS))
@@ -193,6 +203,62 @@ def test_fast_split_bit_identical_to_generic(dtype, axis, degree):
         if box is not None:  # the boxes written during the split are those of the halves
             assert np.array_equal(box[0], ref.box(glo)), f"case {case}: lower box"
             assert np.array_equal(box[1], ref.box(ghi)), f"case {case}: upper box"
+
+
+def _awkward_cubic_points(rng, dtype):
+    """(3, 16) control points over the dtype's whole range (subnormals, sums that overflow), of
+    one sign or mixed, in some cases with signed zeros, ties, infinities and NaNs: only the same
+    operations in the same order, and the same choice between equal or unordered lanes in the
+    box's min and max, reproduce every bit."""
+    info = np.finfo(dtype)
+    exponent = rng.uniform(np.log10(info.smallest_subnormal), np.log10(info.max), (3, 16))
+    sign = (1.0, -1.0, rng.choice([-1.0, 1.0], (3, 16)))[rng.integers(3)]
+    pts = (sign * 10.0 ** exponent).astype(dtype)
+    if rng.uniform() < 0.5:
+        specials = np.array([0.0, -0.0, np.inf, -np.inf, np.nan, pts.flat[0]], dtype)
+        where = rng.uniform(size=pts.shape) < rng.uniform(0.1, 0.9)
+        pts[where] = rng.choice(specials, where.sum())
+    return pts
+
+
+def _same_bits(a, b) -> bool:
+    """Bit for bit, signed zeros included, except that any NaN equals any NaN: LLVM may commute an
+    fadd, so which operand's NaN payload and sign survive is not defined."""
+    nan = np.isnan(a)
+    return np.array_equal(nan, np.isnan(b)) and a[~nan].tobytes() == b[~nan].tobytes()
+
+
+@pytest.mark.interpreted
+def test_numpy_cubic_split_runs_exactly_when_jit_is_off():
+    """With NUMBA_DISABLE_JIT=1 the kernels call simd's numpy split (an intrinsic cannot run in
+    Python); compiled, they keep the intrinsic."""
+    fallbacks = (simd.split_u_cubic_python, simd.split_v_cubic_python)
+    if numba_config.DISABLE_JIT:
+        assert (simd.split_u_cubic, simd.split_v_cubic) == fallbacks
+    else:
+        assert simd.split_u_cubic not in fallbacks and simd.split_v_cubic not in fallbacks
+
+
+@pytest.mark.skipif(numba_config.DISABLE_JIT, reason="compares the compiled intrinsic with its fallback")
+@pytest.mark.parametrize("dtype", DTYPES)
+@pytest.mark.parametrize("axis", [0, 1])
+def test_python_cubic_split_bit_identical_to_simd(dtype, axis):
+    """simd's numpy split (used with NUMBA_DISABLE_JIT=1) writes the same bits as the intrinsic:
+    both halves' points and both boxes, and leaves other slots alone."""
+    compiled = (bezier.split_u_cubic, bezier.split_v_cubic)[axis]
+    python = (simd.split_u_cubic_python, simd.split_v_cubic_python)[axis]
+    rng = np.random.default_rng(45 + axis)
+    with np.errstate(invalid="ignore", over="ignore"):  # inf - inf and overflowing sums are part of the test
+        for case in range(300):
+            buf = np.zeros((3, 4, 16), dtype)
+            buf[0, :3] = _awkward_cubic_points(rng, dtype)
+            buf[2, :3] = _awkward_cubic_points(rng, dtype)  # a slot neither split may touch
+            box = np.full((3, 6), np.nan)
+            buf_py, box_py = buf.copy(), box.copy()
+            compiled(buf, 0, 1, box)
+            python(buf_py, 0, 1, box_py)
+            assert _same_bits(buf, buf_py), f"case {case}: points differ"
+            assert _same_bits(box, box_py), f"case {case}: boxes differ"
 
 
 @pytest.mark.parametrize("dtype", DTYPES)
@@ -230,6 +296,7 @@ def _exact_restrict(line, t0, t1):
     return out
 
 
+@pytest.mark.interpreted
 @pytest.mark.parametrize("degree", [(1, 1), (3, 3), (2, 5), (4, 1)])
 def test_restrict_within_its_bound(degree):
     """bezier.restrict (float64, in place) gives the sub-patch over [u0, u1] x [v0, v1] within
@@ -269,6 +336,7 @@ def _restrict_kernel():
     return run
 
 
+@pytest.mark.interpreted
 @pytest.mark.parametrize("dtype", DTYPES)
 def test_control_box_is_min_max(dtype):
     rng = np.random.default_rng(60)
@@ -279,6 +347,7 @@ def test_control_box_is_min_max(dtype):
 
 # ---- evaluation and normals ----------------------------------------------------------------
 
+@pytest.mark.interpreted
 def test_evaluate_matches_bernstein_sum():
     """Point and first derivatives and the twist, degrees up to 15x15, corners included."""
     rng = np.random.default_rng(70)
@@ -295,6 +364,7 @@ def test_evaluate_matches_bernstein_sum():
                                            err_msg=f"degree {m}x{n} at ({u}, {v}), row {k}")
 
 
+@pytest.mark.interpreted
 def test_normal_matches_cross_product():
     rng = np.random.default_rng(80)
     checked = 0
@@ -332,6 +402,7 @@ def _inside(edge, s, eps):
     return {"v0": (s, eps), "v1": (s, 1 - eps), "u0": (eps, s), "u1": (1 - eps, s)}[edge]
 
 
+@pytest.mark.interpreted
 @pytest.mark.parametrize("edge", ["v0", "v1", "u0", "u1"])
 def test_normal_at_collapsed_edge_is_interior_limit(edge):
     """On a collapsed edge (and a hair inside it, where one derivative underflows the kernel's
@@ -357,6 +428,7 @@ def test_normal_at_collapsed_edge_is_interior_limit(edge):
     assert checked > 40
 
 
+@pytest.mark.interpreted
 def test_teapot_collapsed_patches_normals():
     """The teapot's lid and bottom patches (v = 0 collapsed): normals at the apex side."""
     from scenes import grids_of, teapot
@@ -371,6 +443,7 @@ def test_teapot_collapsed_patches_normals():
                 assert ok and np.linalg.norm(got - inner) < 1e-3, (s, eps, got, inner)
 
 
+@pytest.mark.interpreted
 def test_normal_of_fully_degenerate_patch_is_reported():
     P = np.ones((4, 4, 3))
     ok, got = kernel_normal(P, 0.3, 0.6)
@@ -385,6 +458,7 @@ def kernel_slab(bx, origin, direction, frame=(0.0, 0.0, 0.0), t_min=0.0):
     return slab(np.asarray(bx, np.float64), *map(float, frame), ray)
 
 
+@pytest.mark.interpreted
 def test_slab_agrees_with_exact_test():
     """Random boxes and rays, some direction components zero: the float64 slab agrees with the
     exact rational test whenever the exact answer has a margin, and never yields NaN."""
@@ -412,6 +486,7 @@ def test_slab_agrees_with_exact_test():
     assert agreed > 1000
 
 
+@pytest.mark.interpreted
 @pytest.mark.parametrize("axis", [0, 1, 2])
 def test_slab_ray_in_face_plane(axis):
     """A ray with a zero component lying exactly in a face plane of the box hits (bounds
@@ -434,6 +509,7 @@ def test_slab_ray_in_face_plane(axis):
         assert ok
 
 
+@pytest.mark.interpreted
 @pytest.mark.parametrize("axis", [0, 1, 2])
 def test_slab_axis_parallel_rays(axis):
     """Rays along one axis (two zero components): containment in the other two slabs decides."""
@@ -454,6 +530,7 @@ def test_slab_axis_parallel_rays(axis):
             assert t_in == pytest.approx(float(et_in), abs=1e-12) and t_out >= float(et_out)
 
 
+@pytest.mark.interpreted
 def test_slab_with_frame_offset():
     """Boxes are stored relative to a frame origin; the shift happens inside the slab."""
     rng = np.random.default_rng(120)
@@ -473,6 +550,7 @@ def test_slab_with_frame_offset():
             assert not ok, f"case {case}"
 
 
+@pytest.mark.interpreted
 def test_slab_t_min_clamps_entry():
     bx = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0])
     ok, t_in, t_out = kernel_slab(bx, (-1.0, 0.5, 0.5), (1.0, 0.0, 0.0), t_min=1.5)

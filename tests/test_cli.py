@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from tracer.cli import main
+from psrt.cli import main
 from tracer.colormap import to_uint8
 from tracer.options import Options
 from tracer.render import render
@@ -325,10 +325,22 @@ def test_view_command_reaches_the_viewer_with_the_options(monkeypatch):
 
 # ---- end to end -------------------------------------------------------------------------
 
+def declared_entry_point() -> str:
+    """The console script's target as pyproject.toml declares it, e.g. 'psrt.cli:main'."""
+    import re
+    return re.search(r'^psrt\s*=\s*"([^"]+)"', (REPO / "pyproject.toml").read_text(), re.M).group(1)
+
+
 def test_console_script_end_to_end(tmp_path):
     exe = Path(sys.executable).parent / "psrt"
     if not exe.exists():
         pytest.skip("psrt console script not installed in this environment (pip install -e .)")
+    module, function = declared_entry_point().split(":")
+    if f"from {module} import {function}" not in exe.read_text():  # installed before the entry point moved
+        reason = f"{exe} does not call {module}:{function} (reinstall: scripts/setup)"
+        if os.environ.get("CI", "").lower() in ("1", "true", "yes"):
+            pytest.fail(reason)
+        pytest.skip(reason)
     env = dict(os.environ, NUMBA_CACHE_DIR=os.environ.get("NUMBA_CACHE_DIR", str(REPO / ".numba_cache")))
     png, npz = tmp_path / "e2e.png", tmp_path / "e2e.npz"
     proc = subprocess.run([str(exe), "render", TEAPOT, "-o", str(png), "--size", "32x24", "--aov", str(npz)],

@@ -12,6 +12,11 @@ import digests as D
 
 STORED = json.loads(D.STORE.read_text())
 
+# Cheap enough to run with NUMBA_DISABLE_JIT=1 (a few seconds each): the interpreted kernels
+# must report the bits the compiled ones stored.
+INTERPRETED = [("stress/teapot +1e4", "mantissa/length/f32"), ("stress/teapot +1e4", "adaptive/cross/f64"),
+               ("sphere", "adaptive/cross/f64")]
+
 
 @pytest.mark.parametrize("name", list(D.catalogue()))
 def test_channels_bit_identical(name):
@@ -23,3 +28,14 @@ def test_channels_bit_identical(name):
              if got[key][channel] != digest]
     assert not moved, f"{name}: {len(moved)} channels moved: " + ", ".join(moved[:12])
     assert set(got) == set(expected)
+
+
+@pytest.mark.interpreted
+@pytest.mark.parametrize("name, key", INTERPRETED)
+def test_one_variant_bit_identical(name, key):
+    """One variant of one scene: what test_channels_bit_identical checks, small enough to run
+    interpreted (tests/test_interpreted.py)."""
+    opts = dict(D.variants())[key]
+    got = D.variant_digests(name, opts)
+    moved = [channel for channel, digest in STORED[name][key].items() if got[channel] != digest]
+    assert not moved, f"{name} {key}: channels moved: {', '.join(moved)}"

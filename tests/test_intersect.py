@@ -446,8 +446,9 @@ def test_hits_lie_in_their_patch_boxes():
 
 # ---- the pixel trace -----------------------------------------------------------------------
 
-TRACE_OPTS = [Options(), Options(precision="f64"), Options(criterion="adaptive"),
-              Options(criterion="fixed", fixed_size=1e-3), Options(criterion="mantissa", split="cross")]
+TRACE_OPTS = [pytest.param(Options(), marks=pytest.mark.interpreted), Options(precision="f64"),
+              Options(criterion="adaptive"), Options(criterion="fixed", fixed_size=1e-3),
+              Options(criterion="mantissa", split="cross")]
 
 
 class _PixelView:
@@ -532,6 +533,7 @@ def test_trace_events_are_consistent(opts):
 KNOB_RAY = ((0.55, -0.8, 3.75), (-0.21259009004896104, 0.7230676952310235, -0.7085409452357097))
 
 
+@pytest.mark.interpreted
 @pytest.mark.parametrize("precision", ["f64", "f32"])
 def test_effort_bounded_on_the_lid_knob(precision):
     """One ray at the lid knob: the search finds the hit with a sane number of boxes."""

@@ -11,6 +11,8 @@ from tracer.trim import (TrimError, build_trimset, curve_segments, empty_trimset
                          inside, loops_for_plot, make_loop, remap_segments, sample_segment,
                          signed_area)
 
+pytestmark = pytest.mark.interpreted  # small enough to run with NUMBA_DISABLE_JIT=1 too (test_interpreted.py)
+
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_models"
 
 

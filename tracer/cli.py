@@ -1,22 +1,18 @@
-"""The `psrt` command line: render, trace, bench (and view, when the viewer is installed).
+"""The tracer's commands of the `psrt` command line: render, trace, bench.
 
-Tracer option flags are generated from `tracer.options.option_fields()`, so the
-CLI and the viewer expose the same options with the same names, ranges and help.
-Bad input (scene errors, option values, sizes) prints one message naming the
-file, key or flag on stderr and exits with status 2; set PSRT_TRACEBACK=1 to get
-the traceback instead.
+`add_commands` adds them to the subparsers of psrt/cli.py, which adds the viewer's
+`view` beside them and runs the chosen command. Tracer option flags are generated
+from `tracer.options.option_fields()`, so the CLI and the viewer expose the same
+options with the same names, ranges and help.
 """
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
-import os
 import sys
 from dataclasses import asdict, replace
 from pathlib import Path
 
-from .errors import SceneError
 from .options import CRITERIA, PRECISIONS, SPLITS, Options, option_fields, parse_assignment
 from .stats import CHANNELS
 
@@ -81,11 +77,15 @@ def add_option_flags(parser, exclude=()):
                         help="set any option by name, e.g. --set fixed_size=1e-4 (repeatable, applied last)")
 
 
+def flag_options(args) -> Options:
+    """Options() with the given option flags (the opt_<name> attributes) applied, validated."""
+    return replace(Options(), **{f.name: getattr(args, f"opt_{f.name}") for f in option_fields()
+                                 if getattr(args, f"opt_{f.name}", None) is not None})
+
+
 def options_from_args(args) -> Options:
     """Options() with the given flags, then the --set assignments, applied and validated."""
-    changes = {f.name: getattr(args, f"opt_{f.name}") for f in option_fields()
-               if getattr(args, f"opt_{f.name}", None) is not None}
-    opts = replace(Options(), **changes)
+    opts = flag_options(args)
     for text in args.set:
         opts = parse_assignment(opts, text)
     return opts
@@ -218,24 +218,8 @@ def _add_quiet(parser):
                         help="no progress bars or summary lines on stderr")
 
 
-def _add_view_command(subparsers):
-    """`psrt view SCENE ...`, only when the viewer package is installed. viewer.cli_view adds its
-    flags without loading glfw or OpenGL; the window starts only when the command runs."""
-    try:
-        found = importlib.util.find_spec("viewer.cli_view") is not None
-    except (ImportError, ValueError):
-        found = False
-    if not found:
-        return
-    from viewer.cli_view import add_view_command  # the CLI is the one place in tracer/ that reaches the viewer
-    add_view_command(subparsers)
-
-
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="psrt", description="Parametric-surface ray tracer "
-                                     "(floating-point precision subdivision of Bezier patches).")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-
+def add_commands(sub) -> None:
+    """Add render, trace and bench to an argparse subparsers object (each sets func=cmd_...)."""
     p = sub.add_parser("render", help="render a scene to a PNG, with optional per-pixel outputs")
     p.add_argument("scene", help="scene .json or .bpt file")
     p.add_argument("-o", "--output", required=True, metavar="IMG.png", help="image in the --mode display")
@@ -280,40 +264,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_quiet(p)
     p.set_defaults(func=cmd_bench)
 
-    _add_view_command(sub)
-    return parser
-
 
 def _default_scene() -> Path:
     from .bench import DEFAULT_SCENE
     return DEFAULT_SCENE if DEFAULT_SCENE.exists() else Path("sample_models/teapot.json")
-
-
-def main(argv=None) -> int:
-    """Entry point of the `psrt` console script; returns the exit status."""
-    parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as e:  # argparse: bad usage (2) or --help (0)
-        return e.code if isinstance(e.code, int) else 2
-    if args.command is None:
-        parser.print_help(sys.stderr)
-        return 2
-    try:
-        return args.func(args) or 0
-    except (SceneError, ValueError) as e:
-        if os.environ.get("PSRT_TRACEBACK"):
-            raise
-        print(f"psrt {args.command}: error: {e}", file=sys.stderr)
-        return 2
-    except OSError as e:
-        if os.environ.get("PSRT_TRACEBACK"):
-            raise
-        print(f"psrt {args.command}: error: {e}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        return 130
-
-
-if __name__ == "__main__":
-    sys.exit(main())

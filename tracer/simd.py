@@ -6,10 +6,15 @@ vectors, one per row of constant v (points k = 4 j + i): halving in v runs the s
 whole rows; halving in u transposes first, so each vector holds a column. The arithmetic is
 the scalar split's, lane by lane: (a + b) * 0.5 in the buffer's dtype, no fused or reordered
 operations, so results are bit-identical (tests/test_bezier.py checks).
+
+Intrinsics cannot run in Python, so with NUMBA_DISABLE_JIT=1 the same names are bound to
+numpy versions that do the same operations in the same order (split_u_cubic_python).
 """
 from __future__ import annotations
 
+import numpy as np
 from llvmlite import ir
+from numba import config
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
@@ -116,8 +121,65 @@ def _make_split(along_u: bool):
     return split
 
 
-split_u_cubic = intrinsic(_make_split(True))
+# ---- the same split in numpy, for NUMBA_DISABLE_JIT=1 ------------------------------------
+# Each 4-lane vector is a length-4 array in the buffer's dtype; the scalar one half has that
+# dtype too, so every lane rounds as the vector instruction does.
+
+_SWAP_HALVES = [2, 3, 0, 1]
+_SWAP_PAIRS = [1, 0, 3, 2]
+
+
+def _min_python(a, b):
+    return np.where(a < b, a, b)  # as fcmp_ordered + select: a NaN or an equal pair gives b
+
+
+def _max_python(a, b):
+    return np.where(a > b, a, b)
+
+
+def _reduce_python(op, vectors):
+    acc = vectors[0]
+    for v in vectors[1:]:
+        acc = op(acc, v)
+    acc = op(acc, acc[_SWAP_HALVES])
+    acc = op(acc, acc[_SWAP_PAIRS])
+    return acc[0]
+
+
+def _make_split_python(along_u: bool):
+    def split(buf, src, dst, box):
+        half = buf.dtype.type(0.5)
+
+        def lerp(a, b):
+            return (a + b) * half
+
+        for c in range(3):
+            rows = buf[src, c].reshape(4, 4)  # vector j holds the points k = 4 j + i
+            p = list((rows.T if along_u else rows).copy())
+            q0, q1, q2 = lerp(p[0], p[1]), lerp(p[1], p[2]), lerp(p[2], p[3])
+            s0, s1 = lerp(q0, q1), lerp(q1, q2)
+            mid = lerp(s0, s1)
+            low = np.array([p[0], q0, s0, mid])
+            high = np.array([mid, s1, q2, p[3]])
+            box[src, c], box[src, 3 + c] = _reduce_python(_min_python, low), _reduce_python(_max_python, low)
+            box[dst, c], box[dst, 3 + c] = _reduce_python(_min_python, high), _reduce_python(_max_python, high)
+            if along_u:
+                low, high = low.T, high.T
+            buf[src, c] = low.reshape(16)
+            buf[dst, c] = high.reshape(16)
+
+    split.__name__ = split.__qualname__ = 'split_u_cubic_python' if along_u else 'split_v_cubic_python'
+    return split
+
+
+split_u_cubic_python = _make_split_python(True)
+split_v_cubic_python = _make_split_python(False)
+
+if config.DISABLE_JIT:
+    split_u_cubic, split_v_cubic = split_u_cubic_python, split_v_cubic_python
+else:
+    split_u_cubic = intrinsic(_make_split(True))
+    split_v_cubic = intrinsic(_make_split(False))
 split_u_cubic.__doc__ = """Halve a bicubic in slot src at u = 1/2 (src keeps [0, 1/2], dst gets [1/2, 1]),
 writing both halves' control boxes into box[src], box[dst]."""
-split_v_cubic = intrinsic(_make_split(False))
 split_v_cubic.__doc__ = """Halve a bicubic in slot src at v = 1/2, with both halves' boxes (see split_u_cubic)."""

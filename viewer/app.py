@@ -276,9 +276,3 @@ def run(scene_path=None, max_frames=None, *, size=None, script=None, opts=None, 
         return script.exit_code if script is not None else 0
     finally:
         viewer.close()
-
-
-def main_from_cli(args, opts) -> int:
-    """The hook tracer/cli.py calls for `psrt view` (args from its parser, opts from its flags)."""
-    from .cli_view import run_view
-    return run_view(args, opts)

@@ -1,9 +1,8 @@
 """The `psrt view` subcommand: the interactive viewer, or a scripted run of it.
 
-tracer/cli.py wires it in with `add_view_command(subparsers)` (sets func=run_view) and
-dispatches with `args.func(args)`; its older hook, `viewer.app.main_from_cli(args, opts)`,
-also works (then the script flags are absent and default to off). Nothing that loads glfw
-or OpenGL is imported before the command runs.
+psrt/cli.py adds it beside the tracer's commands with `add_view_command(subparsers)` (sets
+func=run_view) and dispatches with `args.func(args)`; `python -m viewer.cli_view` runs it on
+its own. Nothing that loads glfw or OpenGL is imported before the command runs.
 """
 from __future__ import annotations
 
@@ -69,40 +68,23 @@ def add_script_flags(p) -> None:
                    help="also wait for the float64 reference before the outputs")
 
 
-SCRIPT_DEFAULTS = {"at": [], "click": None, "load": None, "frames": None, "screenshot": None,
-                   "window_screenshot": None, "dump_inspector": None, "aov": None, "status": None,
-                   "wait_reference": False, "set": [], "size": None}
-
-
 def _scripted(args) -> bool:
     return any((args.frames is not None, args.screenshot, args.window_screenshot, args.dump_inspector,
                 args.click, args.aov, args.status, args.at, args.load))
 
 
-def _flag_options(args):
-    """Options from the generated option flags (opt_<name> attributes), without --set."""
-    from dataclasses import replace
-
-    from tracer.options import Options, option_fields
-
-    return replace(Options(), **{f.name: getattr(args, f"opt_{f.name}") for f in option_fields()
-                                 if getattr(args, f"opt_{f.name}", None) is not None})
-
-
-def run_view(args, opts=None) -> int:
+def run_view(args) -> int:
     """Run the viewer for parsed `psrt view` arguments; returns the exit code.
 
-    opts: tracer options already built by the caller (tracer/cli.py's hook); otherwise they
-    come from the option flags. --set assignments go to the options or the viewer settings.
+    Tracer options come from the option flags; --set assignments go to the options or the
+    viewer settings.
     """
+    from tracer.cli import flag_options
     from viewer.script import Script, parse_at
     from viewer.state import ViewSettings, assign
 
-    for name, default in SCRIPT_DEFAULTS.items():  # a parser without the script flags still works
-        if not hasattr(args, name):
-            setattr(args, name, default)
     try:
-        opts = opts if opts is not None else _flag_options(args)
+        opts = flag_options(args)
         settings = ViewSettings()
         for text in args.set:
             opts, settings = assign(opts, settings, text)  # fail before any window opens

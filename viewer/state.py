@@ -1,28 +1,27 @@
 """The viewer's state: the only mutable UI state, owned by the UI thread.
 
-`ViewSettings` holds the viewer-only display settings (tone mapping, overlay) in the
-same metadata style as tracer.options.Options, so one widget builder and one
-`--set name=value` parser serve both records.
+`ViewSettings` holds the viewer-only display settings (tone mapping, overlay), a
+tracer.record.Record like tracer.options.Options, so one widget builder, one validation
+and one `--set name=value` parser serve both records.
 """
 from __future__ import annotations
 
 import json
 import os
 import time
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
+from tracer import record
 from tracer.camera import View
-from tracer.options import Options, option_fields, parse_assignment, parse_bool
+from tracer.options import Options
 
 DEFAULT_CHANNEL = "default"
 
-
-def _setting(default, help, *, choices=None, lo=None, hi=None, log=False, group="Display", when=None):
-    return field(default=default, metadata={"help": help, "choices": choices, "lo": lo, "hi": hi,
-                                            "log": log, "group": group, "cli": None, "when": when})
+_setting = partial(record.described, group="Display")
 
 
 def overlay_names() -> tuple:
@@ -37,8 +36,10 @@ def colormap_names() -> tuple:
 
 
 @dataclass(frozen=True)
-class ViewSettings:
+class ViewSettings(record.Record):
     """How the traced image is shown; never changes what is traced."""
+
+    NOUN = "setting"
 
     exposure: float = _setting(0.0, "exposure in stops applied to the shaded colour", lo=-8.0, hi=8.0)
     gamma: float = _setting(1.0, "extra display gamma on top of the sRGB colours (1: none)", lo=0.2, hi=5.0)
@@ -59,33 +60,10 @@ class ViewSettings:
     reference: bool = _setting(True, "trace the float64 reference after each frame (error statistics)",
                                group="Overlays")
 
-    def __post_init__(self):
-        for f in fields(self):
-            v, m = getattr(self, f.name), f.metadata
-            if m["choices"] is not None and v not in m["choices"]:
-                raise ValueError(f"setting {f.name}: {v!r} is not one of {', '.join(m['choices'])}")
-            if m["lo"] is not None and not (m["lo"] <= v <= m["hi"]):
-                raise ValueError(f"setting {f.name}: {v!r} is outside [{m['lo']}, {m['hi']}]")
-
-
-
 
 def assign(opts: Options, settings: ViewSettings, text: str):
     """Apply `name=value` to the tracer options or, failing that, the view settings."""
-    name = text.split("=", 1)[0].strip()
-    if name in {f.name for f in option_fields()} or "=" not in text:
-        return parse_assignment(opts, text), settings
-    by_name = {f.name: f for f in fields(ViewSettings)}
-    if name not in by_name:
-        known = [f.name for f in option_fields()] + list(by_name)
-        raise ValueError(f"unknown option {name!r} (known: {', '.join(known)})")
-    raw = text.split("=", 1)[1].strip()
-    kind = type(getattr(ViewSettings(), name))
-    try:
-        value = parse_bool(raw) if kind is bool else kind(float(raw)) if kind in (int, float) else raw
-    except ValueError:
-        raise ValueError(f"setting {name}: cannot read {raw!r} as {kind.__name__}") from None
-    return opts, replace(settings, **{name: value})
+    return record.assign((opts, settings), text)
 
 
 @dataclass
