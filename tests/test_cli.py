@@ -93,6 +93,58 @@ def test_render_all_outputs(tmp_path, capsys):
     assert "48x40" in capsys.readouterr().err  # the summary line
 
 
+def test_kernel_channels_reach_npz_maps_and_stats(tmp_path):
+    """nodes and patches_tested (declared once in kernel_channels) are in the .npz, drawable with
+    --map, summarised in --stats; --stats lists the kernel variants compiled and their times."""
+    aov, stats = tmp_path / "a.npz", tmp_path / "s.json"
+    maps = {name: tmp_path / f"{name}.png" for name in ("nodes", "patches_tested", "box_size")}
+    assert run("render", TEAPOT, "-o", tmp_path / "i.png", "--size", "24x20", "--aov", aov, "--stats", stats,
+               *[a for name, path in maps.items() for a in ("--map", f"{name}={path}")]) == 0
+    a = load_npz(aov)
+    for name in ("nodes", "patches_tested"):
+        assert a[name].dtype == np.int32 and a[name].shape == (20, 24)
+    assert np.all(a["patches_tested"] <= a["nodes"]) and a["nodes"].max() > 1
+    for path in maps.values():
+        w, h = png_size(path)
+        assert w >= 24 and h > 20
+    st = json.loads(stats.read_text())
+    assert st["nodes"]["max"] == int(a["nodes"].max())
+    assert st["patches_tested_hits"]["min"] >= 1
+    assert st["variant"] == "f32 bicubic+bilinear closest bvh"
+    kernels = {(k["kernel"], k["variant"]) for k in st["kernels"]}
+    assert ("tile", "f32 bicubic+bilinear closest bvh") in kernels and ("tile", "f64 bicubic+bilinear closest bvh") in kernels
+    assert all(k["seconds"] >= 0 for k in st["kernels"])
+
+
+def test_unknown_map_channel_exits_2(tmp_path, capsys):
+    assert run("render", TEAPOT, "-o", tmp_path / "i.png", "--map", "bogus=x.png") == 2
+    assert "unknown channel 'bogus'" in capsys.readouterr().err
+
+
+def test_compile_note_is_a_step_of_its_own():
+    from tracer.cli import _compile_note
+    from tracer.variants import Variant
+
+    class Bar:
+        desc = "render"
+        lines = []
+
+        def set_description_str(self, text):
+            self.desc = text
+
+        def write(self, text, file=None):
+            self.lines.append(text)
+
+    bar, args = Bar(), type("Args", (), {"quiet": False})()
+    note = _compile_note(args, bar)
+    v = Variant("f32", False, True, False, False, False, False, "closest", "bvh")
+    note(v)
+    assert bar.desc == "compiling the f32 bicubic closest bvh kernel"
+    note(v, 12.5)
+    assert bar.desc == "render" and bar.lines == ["compiled the f32 bicubic closest bvh kernel in 12.5 s"]
+    assert _compile_note(type("Args", (), {"quiet": True})(), bar) is None
+
+
 def test_error_map_marks_holes(tmp_path, monkeypatch):
     """A reference that hits where the render missed (holes made on purpose: a correct render has
     none): the CLI's error map paints exactly those pixels in the documented hole colour, its
