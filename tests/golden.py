@@ -17,7 +17,7 @@ from pathlib import Path
 TESTS = Path(__file__).resolve().parent
 sys.path.insert(0, str(TESTS.parent))
 
-from tracer.cli import main as psrt  # noqa: E402
+from psrt.cli import main as psrt  # noqa: E402
 
 STORE = TESTS / "data" / "golden"
 TEAPOT = TESTS.parent / "sample_models" / "teapot.json"
