@@ -29,6 +29,8 @@ TEAPOT = str(REPO / "sample_models" / "teapot.json")
 CONTRACT = {"ray_origin": ("float64", 3), "ray_dir": ("float64", 3), "hit": ("bool", 0), "t": ("float64", 0),
             "position": ("float64", 3), "box_min": ("float64", 3), "box_max": ("float64", 3),
             "normal": ("float64", 3), "uv": ("float64", 2), "patch": ("int32", 0), "effort": ("int32", 0)}
+# The contract's further channels that the primary-ray kernel computes on every render.
+FURTHER = {"nodes": ("int32", 0), "patches_tested": ("int32", 0)}
 STAT_KEYS = {"rays", "hits", "time", "effort", "effort_hits", "error", "options", "size", "scene"}
 ERROR_KEYS = {"max", "min", "mean", "variance", "holes", "false_hits", "floor", "ratio", "inside_box", "inside_4ulp"}
 
@@ -48,8 +50,8 @@ def load_npz(path):
 
 
 def check_contract(a, w, h):
-    assert set(a) == set(CONTRACT)
-    for name, (dtype, last) in CONTRACT.items():
+    assert set(a) == set(CONTRACT) | set(FURTHER)
+    for name, (dtype, last) in {**CONTRACT, **FURTHER}.items():
         assert a[name].dtype == np.dtype(dtype), name
         assert a[name].shape == ((h, w, last) if last else (h, w)), name
     hit = a["hit"]

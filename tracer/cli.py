@@ -117,6 +117,8 @@ def _write_json(data, path):
 def _compile_note(args, bar):
     """on_compile for render: a step of its own while a kernel variant is compiled (or loaded
     from the cache), so a first run does not sit silently at 0 %."""
+    if args.quiet:
+        return None
     desc = bar.desc
 
     def note(variant, seconds=None):
@@ -127,7 +129,7 @@ def _compile_note(args, bar):
             bar.set_description_str(desc)
             if seconds > 1.0:
                 bar.write(f"compiled the {label(variant)} kernel in {seconds:.1f} s", file=sys.stderr)
-    return note if not args.quiet else None
+    return note
 
 
 def _say(args, text):
