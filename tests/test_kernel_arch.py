@@ -119,6 +119,8 @@ def test_variant_of_an_integral_untrimmed_scene_leaves_out_rational_and_trims():
     teapot = prepare(_scene("teapot"), "f32")
     v = variant_for(teapot, Options())
     assert (v.rational, v.cubic, v.linear, v.general, v.trims, v.trace) == (False, True, True, False, False, False)
+    deg97 = prepare(S.patches_scene([S.smooth_patch(np.random.default_rng(6), 9, 7)]), "f32")
+    assert (variant_for(deg97, Options()).general, variant_for(deg97, Options()).cubic) == (True, False)
     plate = prepare(_scene("plate"), "f32")
     assert variant_for(plate, Options()).trims and not variant_for(plate, Options(trims=False)).trims
     sphere = prepare(_scene("sphere"), "f32")

@@ -33,7 +33,11 @@ def variant_for(geom, opts, *, trace: bool = False, driver: str = "closest", acc
     cubic = integral & (m == 3) & (n == 3)
     linear = integral & (m == 1) & (n == 1)
     trimmed = bool(opts.trims) and bool(np.any(np.asarray(geom.patch_trim) >= 0))
-    return Variant(geom.precision, bool(rational.any()), bool(cubic.any()), bool(linear.any()),
+    # The bicubic and bilinear splits are small: a scene with integral patches compiles both,
+    # so the teapot, the teapot on its floor and a floor alone share one variant (fewer
+    # compiles); other degrees (the generic split) and rational patches stay flags of their own.
+    fast = bool((cubic | linear).any())
+    return Variant(geom.precision, bool(rational.any()), fast, fast,
                    bool((integral & ~cubic & ~linear).any()), trimmed, bool(trace), driver, accel)
 
 
