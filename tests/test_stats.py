@@ -12,7 +12,7 @@ from PIL import Image
 
 from tracer import colormap, shade, stats
 from tracer.plot import trace_plot
-from tracer.render import Frame
+from tracer.render import AOV_NAMES, Frame
 
 
 def synthetic_frame(h=6, w=5, seed=0):
@@ -34,14 +34,14 @@ def synthetic_frame(h=6, w=5, seed=0):
     f.uv[f.hit] = rng.random((h, w, 2))[f.hit]
     f.patch[f.hit] = rng.integers(0, 4, (h, w))[f.hit].astype(np.int32)
     f.effort[:] = rng.integers(0, 500, (h, w)).astype(np.int32)
+    f.nodes[:] = rng.integers(0, 60, (h, w)).astype(np.int32)
+    f.patches_tested[:] = rng.integers(0, 8, (h, w)).astype(np.int32)
     f.seconds = 0.25
     return f
 
 
 def copy_frame(f):
-    return Frame(*(getattr(f, k).copy() for k in ("ray_origin", "ray_dir", "hit", "t", "position", "box_min",
-                                                  "box_max", "normal", "uv", "patch", "effort")),
-                 seconds=f.seconds)
+    return Frame(*(getattr(f, k).copy() for k in AOV_NAMES), seconds=f.seconds)
 
 
 def scene_stub(lights=()):
