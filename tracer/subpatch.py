@@ -207,6 +207,18 @@ def recentre(sl, s, pa, eps64):
     widen(sl, s, pa.sub_scale)
 
 
+@njit(cache=True, nogil=True, inline='always')
+def _restricted_leaf(sl, s, pa, lv, ncoord):
+    """The float64 leaf's first ncoord rows restricted to slot s's parameter interval, into
+    sl.w64; returns the restriction's relative error bound (bezier.restrict_err)."""
+    mf = sl.mf
+    for c in range(ncoord):
+        for k in range(pa.count):
+            sl.w64[c, k] = lv.ctrl64[c, pa.start + k]
+    restrict(sl.w64, pa.m, pa.n, ncoord, mf[s, M_U0], mf[s, M_U1], mf[s, M_V0], mf[s, M_V1])
+    return restrict_err(pa.m, pa.n)
+
+
 @njit(cache=True, nogil=True, _nrt=False)  # rare: a call, not inlined (see _COLD)
 def refine(sl, s, pa, lv):
     """Re-derive slot s's (integral) control points from the float64 leaf over its parameter
@@ -220,11 +232,7 @@ def refine(sl, s, pa, lv):
     ctrl64 = lv.ctrl64
     count = pa.count
     start = pa.start
-    for c in range(3):
-        for k in range(count):
-            w64[c, k] = ctrl64[c, start + k]
-    restrict(w64, pa.m, pa.n, 3, mf[s, M_U0], mf[s, M_U1], mf[s, M_V0], mf[s, M_V1])
-    rel = restrict_err(pa.m, pa.n)
+    rel = _restricted_leaf(sl, s, pa, lv, 3)
     for c in range(3):
         lo = math.inf
         hi = -math.inf
@@ -255,11 +263,7 @@ def refine_rational(sl, s, pa, lv):
     ctrl64 = lv.ctrl64
     count = pa.count
     start = pa.start
-    for c in range(4):
-        for k in range(count):
-            w64[c, k] = ctrl64[c, start + k]
-    restrict(w64, pa.m, pa.n, 4, mf[s, M_U0], mf[s, M_U1], mf[s, M_V0], mf[s, M_V1])
-    rel = restrict_err(pa.m, pa.n)
+    rel = _restricted_leaf(sl, s, pa, lv, 4)
     big_w = 0.0
     w_err = 0.0
     for k in range(count):
