@@ -16,6 +16,7 @@ from .options import Options
 from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN, make_ray
 from .records import C_EFFORT, COUNTER_LEN, new_trace
 from .render import kernel_inputs
+from .tile_kernel import tile_scratch
 from .search_steps import EVENT_NAMES
 from .hit_normal import hit_normal
 from .variants import compiled, variant_for
@@ -96,7 +97,7 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
     counts = np.zeros(COUNTER_LEN, np.int64)
     make_ray(ray, o[0], o[1], o[2], d[0], d[1], d[2], 0.0, 0.0, slope * length)
     hit[H_TIN] = math.inf
-    args = (ray, hit, inputs.scene, inputs.query, inputs.sizes, trace, counts)
+    args = (ray, hit, inputs.scene, inputs.query, trace, counts, tile_scratch(inputs))
     compiled("ray", variant_for(geom, opts, trace=True), args)(*args)
     effort = int(counts[C_EFFORT])
     leaf_patch = inputs.leaf_patch
