@@ -147,5 +147,5 @@ def trace_pixel(scene, opts: Options, x: int, y: int, *, size=None, view: View |
         raise ValueError(f"pixel {x},{y} is outside the {width}x{height} image")
     view = view or view_of(scene)
     geom = geometry if geometry is not None else prepare(scene, opts.precision)
-    origins, dirs = primary_rays(view, width, height, opts.precision)
-    return trace_ray_steps(geom, opts, origins[y, x], dirs[y, x], view.pixel_angle(height), (x, y))
+    origins, dirs = primary_rays(view, width, height, opts.precision, rect=(y, y + 1, x, x + 1))
+    return trace_ray_steps(geom, opts, origins[0, 0], dirs[0, 0], view.pixel_angle(height), (x, y))
