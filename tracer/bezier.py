@@ -244,6 +244,8 @@ def evaluate(pts, m, n, u, v, ncoord, scratch, out):
     bv = scratch[1]
     du = scratch[2]
     dv = scratch[3]
+    m = np.int64(m)  # one compiled _bernstein_row for deg and deg - 1
+    n = np.int64(n)
     _bernstein_row(m, u, bu)
     _bernstein_row(n, v, bv)
     if m > 0:

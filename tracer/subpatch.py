@@ -50,7 +50,7 @@ SUB_ERR_BITS = 8    # float64: a split's rounding stays below 2^-(bits - 8) of t
 # Calls or inlines. numba inlines an inline='always' helper into its own IR once per call site,
 # and its type inference, SSA and lowering then cost more than linearly in the kernel's size; a
 # plain call is typed and lowered once, and LLVM still inlines it where that pays. So leaf
-# operations used at several call sites are calls (_CALLED: corner, raw_box, widen,
+# operations used at several call sites are calls (_CALLED: point, raw_box, widen,
 # rational_bound, snap_*, ulp), and so are the rare re-centring and
 # re-deriving (_COLD); operations given a variant flag as an argument stay inlined, so that the
 # flag stays a constant their branches are pruned by (split, tighten, open_child). The hull and
@@ -255,7 +255,7 @@ def refine(sl, s, pa, lv):
             err = max(err, abs(np.float64(buf[s, c, k]) - local) + abs(local) * 2.0 ** -52)
         mf[s, M_OX + c] = offset
         mf[s, M_E + c] = err + big * rel + lv.eps64[pa.p, c]
-    raw_box(sl, s, count, False)
+    raw_box(sl, s, count, pa.rational)  # False: integral
     widen(sl, s, 0.0)  # the bound carries every rounding (float32, integral)
 
 
@@ -296,17 +296,19 @@ def refine_rational(sl, s, pa, lv):
                       + (abs(local) + abs(offset * w64[3, k])) * 2.0 ** -52)
         mf[s, M_OX + c] = offset
         mf[s, M_EH + c] = err + big * rel + abs(offset) * w_bound
-    raw_box(sl, s, count, True)
+    raw_box(sl, s, count, pa.rational)  # True
     rational_bound(sl, s, pa, lv.eps64)
     widen(sl, s, 0.0)
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
-def corner(buf, s, k, c, rational):
-    """Coordinate c of control point k in slot s, homogenised for rational patches."""
-    if rational:
-        return np.float64(buf[s, c, k]) / np.float64(buf[s, 3, k])  # numba: float(float32) stays float32
-    return np.float64(buf[s, c, k])
+def point(buf, s, k, rational):
+    """Control point k of slot s in float64, homogenised for rational patches. (k an int64
+    variable, never a literal: numba would compile a copy per literal value.)"""
+    if rational:  # numba: float(float32) stays float32, hence np.float64
+        w = np.float64(buf[s, 3, k])
+        return np.float64(buf[s, 0, k]) / w, np.float64(buf[s, 1, k]) / w, np.float64(buf[s, 2, k]) / w
+    return np.float64(buf[s, 0, k]), np.float64(buf[s, 1, k]), np.float64(buf[s, 2, k])
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -323,8 +325,8 @@ def hull_off_plane(sl, s, pa, ray, n0, n1, n2):
     lo = math.inf
     hi = -math.inf
     for k in range(pa.count):
-        dist = (corner(buf, s, k, 0, pa.rational) * n0 + corner(buf, s, k, 1, pa.rational) * n1
-                + corner(buf, s, k, 2, pa.rational) * n2)
+        x, y, z = point(buf, s, k, pa.rational)
+        dist = x * n0 + y * n1 + z * n2
         lo = min(lo, dist)
         hi = max(hi, dist)
     slack = ((mf[s, M_E] + sub) * abs(n0) + (mf[s, M_E + 1] + sub) * abs(n1) + (mf[s, M_E + 2] + sub) * abs(n2)
@@ -352,9 +354,11 @@ def seam_plane(sl, s, pa, direction, ray):
     buf = sl.buf
     rational = pa.rational
     end = pa.n * (pa.m + 1) if direction == 0 else pa.m
-    ex = corner(buf, s, end, 0, rational) - corner(buf, s, 0, 0, rational)
-    ey = corner(buf, s, end, 1, rational) - corner(buf, s, 0, 1, rational)
-    ez = corner(buf, s, end, 2, rational) - corner(buf, s, 0, 2, rational)
+    x0, y0, z0 = point(buf, s, np.int64(0), rational)
+    x1, y1, z1 = point(buf, s, end, rational)
+    ex = x1 - x0
+    ey = y1 - y0
+    ez = z1 - z0
     dx = ray[R_D]
     dy = ray[R_D + 1]
     dz = ray[R_D + 2]
@@ -387,12 +391,12 @@ def split_direction(sl, s, pa, ray, split_mode):
         ub = m if e == 0 else last
         va = 0 if e == 0 else m
         vb = n * (m + 1) if e == 0 else last
-        ex = corner(buf, s, ub, 0, rational) - corner(buf, s, ua, 0, rational)
-        ey = corner(buf, s, ub, 1, rational) - corner(buf, s, ua, 1, rational)
-        ez = corner(buf, s, ub, 2, rational) - corner(buf, s, ua, 2, rational)
-        gx = corner(buf, s, vb, 0, rational) - corner(buf, s, va, 0, rational)
-        gy = corner(buf, s, vb, 1, rational) - corner(buf, s, va, 1, rational)
-        gz = corner(buf, s, vb, 2, rational) - corner(buf, s, va, 2, rational)
+        xa, ya, za = point(buf, s, ua, rational)
+        xb, yb, zb = point(buf, s, ub, rational)
+        ex, ey, ez = xb - xa, yb - ya, zb - za
+        xa, ya, za = point(buf, s, va, rational)
+        xb, yb, zb = point(buf, s, vb, rational)
+        gx, gy, gz = xb - xa, yb - ya, zb - za
         if split_mode == SPLIT_CROSS:
             dx = ray[R_D]
             dy = ray[R_D + 1]
