@@ -137,6 +137,16 @@ def _say(args, text):
         print(text, file=sys.stderr)
 
 
+def _import_losses(args, scene) -> None:
+    """What free-form imports did not convert, on stderr (--quiet too); --strict: an error."""
+    from .formats.losses import loss_lines, strict_check
+    if args.strict:
+        strict_check(scene.import_report)
+    for source, report in scene.import_report.items():
+        for i, line in enumerate(loss_lines(source, report)):
+            print(f"psrt {args.command}: warning: {line}" if i == 0 else line, file=sys.stderr)
+
+
 # ---- commands ---------------------------------------------------------------------
 
 def cmd_render(args) -> int:
@@ -148,6 +158,7 @@ def cmd_render(args) -> int:
     maps = dict(args.map)
     _check_writable(args.output, args.aov, args.effort_map, args.error_map, args.stats, *maps.values())
     scene = load_scene(args.scene)
+    _import_losses(args, scene)
     opts = options_from_args(args)
     width, height = args.size or scene.image_size or (512, 512)
     with _bar(len(tiles(width, height, opts.tile_size)), "render", args.quiet) as bar:
@@ -168,10 +179,12 @@ def cmd_render(args) -> int:
         channel_image(name, frame, ref).save(path, format="PNG")
     fs = frame_stats(frame)
     if args.stats:
+        from .formats.losses import summary
         from .variants import compile_report
         _write_json({"scene": str(args.scene), "size": [width, height], "options": asdict(opts), **fs,
                      "reference_time": ref.seconds, "error": error_stats(frame, ref),
-                     "kernels": compile_report()}, args.stats)
+                     "kernels": compile_report(),
+                     "imports": {src: summary(r) for src, r in scene.import_report.items()}}, args.stats)
     _say(args, f"{args.output}: {width}x{height}, {fs['hits']} hits of {fs['rays']} rays in "
                f"{fs['time']:.3f} s, mean effort {fs['effort']['mean']:.1f} box tests/ray")
     return 0
@@ -184,6 +197,7 @@ def cmd_trace(args) -> int:
 
     _check_writable(args.output, args.plot)
     scene = load_scene(args.scene)
+    _import_losses(args, scene)
     opts = options_from_args(args)
     x, y = args.pixel
     tr = trace_pixel(scene, opts, x, y, size=args.size)
@@ -220,6 +234,12 @@ def _add_quiet(parser):
                         help="no progress bars or summary lines on stderr")
 
 
+def _add_strict(parser):
+    parser.add_argument("--strict", action="store_true",
+                        help="fail (exit 2) if an imported file (IGES) lost anything: entities not "
+                             "converted, or a file cut short")
+
+
 def add_commands(sub) -> None:
     """Add render, trace and bench to an argparse subparsers object (each sets func=cmd_...)."""
     p = sub.add_parser("render", help="render a scene to a PNG, with optional per-pixel outputs")
@@ -238,6 +258,7 @@ def add_commands(sub) -> None:
                    "variants compiled and their compile times (computes the float64 reference)")
     add_option_flags(p)
     _add_quiet(p)
+    _add_strict(p)
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("trace", help="one pixel's subdivision trace as JSON (and a plot)")
@@ -248,6 +269,7 @@ def add_commands(sub) -> None:
     p.add_argument("--size", type=parse_size, help="image size WxH (default: the scene's, else 512x512)")
     add_option_flags(p)
     _add_quiet(p)
+    _add_strict(p)
     p.set_defaults(func=cmd_trace)
 
     p = sub.add_parser("bench", help="time and check every criterion x split x precision")

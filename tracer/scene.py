@@ -22,6 +22,7 @@ import numpy as np
 from tracer.errors import SceneError
 from tracer.formats.source import check_file, quote, read_text, shown
 from tracer.formats.bpt import MAX_DEGREE, PatchArrays, PatchData, load_bpt_arrays
+from tracer.formats.losses import has_losses, summary_line
 from tracer.formats.obj import load_obj
 from tracer.nurbs import FreeformModel, SurfaceInfo
 from tracer.trim import TrimSet, build_trimset
@@ -215,7 +216,8 @@ def _read_file(o: _Obj, path, ext: str) -> None:
         from tracer.formats.iges import load_iges  # needs pyiges; import only when used
         model = load_iges(path)
     if not model.surfaces:
-        raise SceneError("no free-form surfaces in the file", path=str(path))
+        lost = f": {summary_line(model.report)}" if has_losses(model.report) else ""
+        raise SceneError(f"no free-form surfaces in the file{lost}", path=str(path))
     o.model, o.patch_surface, o.patch_domain, parts = model, [], [], []
     for si, fs in enumerate(model.surfaces):
         net = fs.surface.bezier_patches()
