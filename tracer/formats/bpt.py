@@ -1,7 +1,8 @@
 """Reader for `.bpt` Bezier patch files (see /work/shared/scene-format.md).
 
 Whitespace separated, as the contract says: the patch count, then for each patch a header
-`m n` (its two integers on one line) and (m+1)*(n+1) control points of 3 numbers (x y z) or
+`m n` (two integers on one line, or n alone on its line: an n that shares the line of the
+points is a header missing its n) and (m+1)*(n+1) control points of 3 numbers (x y z) or
 4 (x y z w). `#` starts a comment that runs to the end of its line; lines are counted at
 "\\n" only, so a form feed or vertical tab inside a line is just a space. Numbers are plain
 ASCII decimals (tracer.formats.source.NUMBER).
@@ -9,12 +10,13 @@ ASCII decimals (tracer.formats.source.NUMBER).
 A patch's points have 3 or 4 numbers. When its first point starts a line of 3 or 4 numbers
 (the usual layout, a point a line), that count holds and every point of the patch must fill
 a line of its own. Otherwise (points run together, everything on one line, ...) it is the
-count after which the next patch's header, or the end of the file, follows; if both counts
-fit, an error says the file is ambiguous.
+count after which the next patch headers (LOOKAHEAD of them), or the end of the file,
+follow; if both counts fit, an error says the file is ambiguous.
 
 Vectorised: numpy tokenises and converts the text a block at a time as the parser reaches
-it, and a run of patches with the same header and layout is checked and cut out as one
-array. Junk after the last patch is reported as soon as it is reached.
+it, and a run of patches with the same header and layout as the one before is checked and
+cut out as one array (points run together are then read with that patch's count). Junk
+after the last patch is reported as soon as it is reached.
 """
 import re
 from dataclasses import dataclass
@@ -242,7 +244,7 @@ class _Parser:
         parts, done, pos = [], 0, 1
         while done < self.count:
             m, n, w, lines, end = self.patch(pos, done + 1)
-            runs = self.run_length(end, m, n, w, self.count - done - 1) if lines else 0
+            runs = self.run_length(end, m, n, w, self.count - done - 1, lines)
             parts.append(self.cut(pos, m, n, w, 1 + runs))
             done += 1 + runs
             pos = end + runs * (2 + (m + 1) * (n + 1) * w)
@@ -262,9 +264,8 @@ class _Parser:
                 self.fail(f"unexpected end of file: patch {p} of {total} is missing "
                           f"(expected its header 'm n')", tk.last_line)
         hline = int(tk.line[pos]) if pos < tk.n else tk.bad[1]
-        if not (tk.n >= pos + 2 and tk.integral[pos] and tk.integral[pos + 1]
-                and tk.line[pos + 1] == hline):
-            self.fail(f"patch {p}: expected a header 'm n' (two integers on one line), "
+        if not self.header_at(pos):
+            self.fail(f"patch {p}: expected a header 'm n' (two integers), "
                       f"got {quote(tk.rest_of_line(pos))}", hline)
         for k in (pos, pos + 1):
             if not 1 <= tk.value[k] <= MAX_DEGREE:
@@ -282,14 +283,24 @@ class _Parser:
         if tk.line[first - 1] < fline and on_line in (3, 4):
             self.check_lines(first, count, on_line, where)
             return m, n, on_line, True, first + count * on_line
-        if tk.line[first - 1] < fline and on_line < 3:
-            self.fail(f"expected 3 or 4 numbers per control point, got {on_line}", fline)
         w = self.stream_width(first, count, p)
+        if w is None and tk.line[first - 1] < fline and on_line < 3:  # a point a line, short
+            self.fail(f"expected 3 or 4 numbers per control point, got {on_line}", fline)
+        w = w or 3  # neither count reads on: the errors come as the tokens are read as 3s
         end = first + count * w
         if not tk.need(end):
             self.fail_short(where + f", got {(tk.n - first) // w}")
         self.check_values(first, count, w, end)
         return m, n, w, False, end
+
+    def header_at(self, q) -> bool:
+        """Are tokens q, q+1 two integers that read as a header: on one line, or n alone on
+        its line (a number a line)? (n on the line of the points is a header missing its n.)"""
+        tk = self.tk
+        if not (tk.need(q + 3) or tk.n >= q + 2) or not (tk.integral[q] and tk.integral[q + 1]):
+            return False
+        line = tk.line[q + 1]
+        return bool(tk.line[q] == line or (q + 2 >= tk.n and not tk.bad) or tk.line[q + 2] > line)
 
     def check_lines(self, first, count, w, where):
         """The points of a patch laid out a point a line: each fills its own line."""
@@ -328,13 +339,13 @@ class _Parser:
 
     def stream_width(self, first, count, p):
         """3 or 4: the count after which the following patches (LOOKAHEAD of them, or all
-        that are left) read on, the last ending the file."""
+        that are left) read on, the last ending the file; None if neither does."""
         fits = [w for w in (3, 4) if self.fits(first + count * w, p, LOOKAHEAD)]
         if len(fits) == 2:
             self.fail(f"patch {p}: cannot tell whether its control points have 3 or 4 numbers "
                       f"(both fit); put each control point on a line of its own",
                       int(self.tk.line[first]))
-        return fits[0] if fits else 3
+        return fits[0] if fits else None
 
     def fits(self, q, p, depth) -> bool:
         """Can token q start patch p+1 (q the end of the file if p was the last), with
@@ -343,17 +354,16 @@ class _Parser:
         if p == self.count:
             tk.need(q + 1)
             return tk.n == q and not tk.bad
-        if not (tk.need(q + 2) and tk.integral[q] and tk.integral[q + 1]
-                and tk.line[q] == tk.line[q + 1]
-                and all(1 <= tk.value[k] <= MAX_DEGREE for k in (q, q + 1))):
+        if not (self.header_at(q) and all(1 <= tk.value[k] <= MAX_DEGREE for k in (q, q + 1))):
             return False
         count = (int(tk.value[q]) + 1) * (int(tk.value[q + 1]) + 1)
         return depth == 0 or any(self.fits(q + 2 + count * w, p + 1, depth - 1) for w in (3, 4))
 
     # ---- runs of patches like the last, checked as arrays ----------------------------
 
-    def run_length(self, pos, m, n, w, most):
-        """How many patches from token pos on repeat header m n with a point a line of w."""
+    def run_length(self, pos, m, n, w, most, one_a_line):
+        """How many patches from token pos on repeat header m n, laid out like the patch
+        before them: a point a line of w (one_a_line), or run together (read w a point)."""
         tk = self.tk
         count = (m + 1) * (n + 1)
         stride = 2 + count * w
@@ -375,12 +385,18 @@ class _Parser:
             coords = value[:, 2:].reshape(r, count, w)
             integral = tk.integral[block].reshape(r, stride)
             ok = (integral[:, 0] & integral[:, 1] & (value[:, 0] == m) & (value[:, 1] == n)
-                  & (head[:, 0] == head[:, 1])
-                  & (pts == pts[:, :, :1]).all(axis=(1, 2))
-                  & (pts[:, 0, 0] > head[:, 1])
-                  & (pts[:, 1:, 0] > pts[:, :-1, -1]).all(axis=1)
-                  & (after > pts[:, -1, -1])
-                  & np.isfinite(coords).all(axis=(1, 2)))
+                  & (head[:, 0] == head[:, 1]) & np.isfinite(coords).all(axis=(1, 2)))
+            if one_a_line:
+                ok &= ((pts == pts[:, :, :1]).all(axis=(1, 2)) & (pts[:, 0, 0] > head[:, 1])
+                       & (pts[:, 1:, 0] > pts[:, :-1, -1]).all(axis=1) & (after > pts[:, -1, -1]))
+            else:  # as patch() decides: the first point does not start a line of 3 or 4,
+                # and the count w reads on to a header (or to the end after the last patch)
+                first = pts.reshape(r, -1)
+                ok &= (first[:, 0] == head[:, 1]) | (first[:, 4] == first[:, 0])
+                heads = (integral[:, 0] & integral[:, 1] & (head[:, 0] == head[:, 1])
+                         & (value[:, :2] >= 1).all(axis=1) & (value[:, :2] <= MAX_DEGREE).all(axis=1))
+                last = start + r * stride
+                ok &= np.append(heads[1:], self.fits(last, self.count - most + done + r, 0))
             if w == 4:
                 ok &= (coords[:, :, 3] > 0).all(axis=1)
             if not ok.all():
