@@ -32,7 +32,8 @@ _D_FIELDS = (("entity_type_number", 0, 0), ("parameter_pointer", 0, 8), ("struct
              ("transform", 0, 48), ("label_assoc", 0, 56), ("line_weight_number", 1, 8),
              ("color_number", 1, 16), ("param_line_count", 1, 24), ("form_number", 1, 32),
              ("entity_subs_num", 1, 64))
-_IGES_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[EeDd][+-]?[0-9]+)?\Z")
+_NUMBER = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[EeDd][+-]?[0-9]+)?"  # D: Fortran exponents
+_IGES_NUMBER = re.compile(_NUMBER + r"\Z")
 _HOLLERITH = re.compile(r" *([0-9]+)H")
 
 
@@ -47,6 +48,9 @@ class _NonAscii(dict):
 
 _HIGH = _NonAscii()
 _BLANK = " \t\x1a"  # a line of only these (\x1a: DOS end of file) is skipped
+_ORDER = re.compile("S*G*D*P*T?")
+_FIELD = rf" *(?:{_NUMBER})? *"
+_BIG = re.compile(r"[EeDd][+-]?0*[1-9][0-9]{2}|[0-9]{300}")  # a number that may overflow
 
 
 class Unreadable(Exception):
@@ -146,9 +150,10 @@ def _sections(lines, label, partial, notes) -> dict:
 
     `partial`: the file line the file ends inside; where it fails a check, the file was cut
     there, and the line is dropped with a note instead of an error."""
-    sections = {c: [] for c in SECTIONS}
-    order, at = "SGDPT", 0
-    for no, text, width in lines:
+    sections = _sections_at_once(lines)
+    at = 0
+    for no, text, width in lines if sections is None else ():
+        sections = sections or {c: [] for c in SECTIONS}
         try:
             at = _check_line(sections, no, text, width, at, lines[0][0], label)
         except SceneError:
@@ -157,6 +162,7 @@ def _sections(lines, label, partial, notes) -> dict:
             notes.append(f"the file ends inside line {no}, which is dropped (cut short?)")
             continue
         sections[text[72]].append((no, text))
+    sections = sections or {c: [] for c in SECTIONS}
     if not sections["T"]:
         last = lines[-1][0] if lines else 0
         notes.append(f"no terminate section: the file ends at line {last} (cut short?)")
@@ -167,6 +173,28 @@ def _sections(lines, label, partial, notes) -> dict:
             if said is not None and said != len(sections[c]):
                 notes.append(f"the terminate section counts {said} {SECTIONS[c]} lines, "
                              f"the file has {len(sections[c])}")
+    return sections
+
+
+def _sections_at_once(lines) -> dict | None:
+    """The sections of a sound file in one go (what _check_line checks line by line), or None
+    if anything is off: then the line by line check says what and where."""
+    if not lines or min(w for _, _, w in lines) < 73:
+        return None
+    if not _ORDER.fullmatch("".join(t[72] for _, t, _ in lines)):
+        return None
+    sections = {c: [] for c in SECTIONS}
+    for no, text, _ in lines:
+        sections[text[72]].append((no, text))
+    for c, part in sections.items():
+        seq = [t[73:80] for _, t in part]
+        if any("_" in x for x in seq):  # int() takes 1_0
+            return None
+        try:
+            if list(map(int, seq)) != list(range(1, len(seq) + 1)):
+                return None
+        except ValueError:
+            return None
     return sections
 
 
@@ -242,7 +270,12 @@ def global_section(text: str) -> dict:
 def _entries(f: IgesFile, dlines, plines, delim, end) -> None:
     """Fill f.de_numbers, f.entities and f.unreadable from the D and P sections."""
     from pyiges.entity import Entity
-    back = [parse_int(t[64:72].strip()) for _, t in plines]
+    back = [t[64:72] for _, t in plines]  # each line's DE number
+    try:
+        back = list(map(int, back)) if not any("_" in b for b in back) else None
+    except ValueError:
+        back = None
+    back = back or [parse_int(t[64:72].strip()) for _, t in plines]
     for k in range(0, len(dlines), 2):
         de = k + 1
         f.de_numbers.append(de)
@@ -272,9 +305,13 @@ def _entries(f: IgesFile, dlines, plines, delim, end) -> None:
 def _directory_fields(first: str, second: str, de: int) -> dict:
     lines = (first, second)
     d = {}
+    plain = "_" not in first and "_" not in second  # then int() reads only ASCII integers
     for name, which, col in _D_FIELDS:
         text = lines[which][col:col + 8].strip()
-        value = parse_int(text) if text else 0
+        try:
+            value = (int(text) if plain else parse_int(text)) if text else 0
+        except ValueError:
+            value = None
         if value is None:
             raise Unreadable("unreadable directory entry",
                              f"D {de + which}: columns {col + 1}-{col + 8} ({name}) hold "
@@ -309,10 +346,12 @@ def _parameters(d: dict, de: int, plines, back, delim, end) -> list[str]:
     while stop < n and back[stop] == de:
         stop += 1
     record = "".join(t[:64] for _, t in plines[ptr - 1:stop])
-    tokens, offsets, strings = _split(record, delim, end, ptr, stop)
+    tokens, offsets, strings, body = _split(record, delim, end, ptr, stop)
     if parse_int(tokens[0].strip()) != d["entity_type_number"]:
         raise Unreadable(kind, f"P {ptr}: the parameter data is of type {quote(tokens[0])}, "
                                f"the directory entry says {d['entity_type_number']}")
+    if body is not None and _numbers(delim).match(body) and not _BIG.search(body):
+        return tokens  # every field a plain number (or empty), none that overflows
     for k, t in enumerate(tokens):
         s = t.strip()
         if s and not _number_ok(s) and k not in strings:
@@ -330,14 +369,15 @@ def _number_ok(s: str) -> bool:
 
 def _split(record: str, delim: str, end: str, ptr: int, stop: int):
     """(fields, their offsets in the record or None (they follow from the fields), the
-    indices of Hollerith strings among them) up to the record delimiter."""
+    indices of Hollerith strings among them, the record's text if it has none, else None)
+    up to the record delimiter."""
     kind = "unreadable parameter data"
     if "H" not in record:
         cut = record.find(end)
         if cut < 0:
             raise Unreadable(kind, f"P {ptr}-{stop}: the parameter data does not end with "
                                    f"{quote(end)} (cut short?)")
-        return record[:cut].split(delim), None, ()
+        return record[:cut].split(delim), None, (), record[:cut]
     tokens, offsets, strings, i = [], [], set(), 0
     while True:
         m = _HOLLERITH.match(record, i)
@@ -361,11 +401,17 @@ def _split(record: str, delim: str, end: str, ptr: int, stop: int):
             raise Unreadable(kind, f"P {ptr}-{stop}: the parameter data does not end with "
                                    f"{quote(end)} (cut short?)")
         if record[j] == end:
-            return tokens, offsets, strings
+            return tokens, offsets, strings, None
         if record[j] != delim:
             raise Unreadable(kind, f"P {ptr + j // 64}: {quote(record[j])} after a Hollerith "
                                    f"string, expected {quote(delim)} or {quote(end)}")
         i = j + 1
+
+
+@functools.cache
+def _numbers(delim: str) -> re.Pattern:
+    """A record's text (to its ';') whose every field is a plain number or empty."""
+    return re.compile(f"{_FIELD}(?:{re.escape(delim)}{_FIELD})*\\Z")
 
 
 @functools.cache
