@@ -23,7 +23,7 @@ consumed, failed, unsupported, unreadable, not_rendered, non_geometry, orphan), 
 nothing is dropped silently; report['unsupported'] counts by type what could not be
 turned into surfaces, and report['losses'] (tracer.formats.losses) groups every
 entity that could have become a surface and did not (failed, unsupported,
-unreadable) by type and kind, with directory-entry numbers and a reason;
+unreadable, orphaned) by type and kind, with directory-entry numbers and a reason;
 report['notes'] says when the file itself is cut short or inconsistent.
 """
 from __future__ import annotations
