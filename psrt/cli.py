@@ -2,9 +2,10 @@
 
 This is the one module that knows both packages: tracer/ never imports viewer/, and the
 viewer's `view` command adds its flags without loading glfw or OpenGL (the window starts
-only when the command runs). Bad input (scene errors, option values, sizes) prints one
-message naming the file, key or flag on stderr and exits with status 2; set
-PSRT_TRACEBACK=1 to get the traceback instead.
+only when the command runs). Bad input (scene errors, option values, sizes, output paths)
+prints one line naming the file, key or flag on stderr and exits with status 2 (usage errors
+too: `--help` shows the usage); a failed write exits with 1. Set PSRT_TRACEBACK=1 to get the
+traceback instead.
 """
 from __future__ import annotations
 
@@ -17,9 +18,20 @@ from tracer.errors import SceneError
 from viewer.cli_view import add_view_command
 
 
+def _one_line(error) -> str:
+    return " ".join(str(error).split())
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (status 2), without the usage."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {_one_line(message)} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="psrt", description="Parametric-surface ray tracer "
-                                     "(floating-point precision subdivision of Bezier patches).")
+    parser = Parser(prog="psrt", description="Parametric-surface ray tracer "
+                    "(floating-point precision subdivision of Bezier patches).")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     tracer_cli.add_commands(sub)
     add_view_command(sub)
@@ -41,12 +53,13 @@ def main(argv=None) -> int:
     except (SceneError, ValueError) as e:
         if os.environ.get("PSRT_TRACEBACK"):
             raise
-        print(f"psrt {args.command}: error: {e}", file=sys.stderr)
+        print(f"psrt {args.command}: error: {_one_line(e)}", file=sys.stderr)
         return 2
-    except OSError as e:
+    except (OSError, MemoryError) as e:
         if os.environ.get("PSRT_TRACEBACK"):
             raise
-        print(f"psrt {args.command}: error: {e}", file=sys.stderr)
+        what = _one_line(e) if isinstance(e, OSError) else "out of memory (see --memory-limit in the README)"
+        print(f"psrt {args.command}: error: {what}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         return 130

@@ -332,7 +332,7 @@ def test_bench_quiet_defaults_scene(capsys):
     (["render", TEAPOT, "-o", "x.png", "--size", "0x5"], "--size"),
     (["render", TEAPOT, "-o", "x.png", "--set", "nope=1"], "nope"),
     (["render", TEAPOT, "-o", "x.png", "--set", "criterion"], "option=value"),
-    (["render", TEAPOT, "-o", "x.png", "--fixed-size", "50"], "fixed_size"),
+    (["render", TEAPOT, "-o", "x.png", "--fixed-size", "50"], "--fixed-size: 50 is outside [1e-09, 10.0]"),
     (["render", TEAPOT, "-o", "x.png", "--criterion", "exact"], "--criterion"),
     (["render", TEAPOT, "-o", "/no/such/dir/x.png"], "/no/such/dir"),
     (["trace", TEAPOT, "--pixel", "5"], "--pixel"),

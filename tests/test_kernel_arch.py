@@ -21,6 +21,7 @@ from tracer.ray import H_TIN, H_TOUT, HIT_LEN, RAY_LEN, make_ray
 from tracer.records import C_EFFORT, C_NODES, C_PATCHES, COUNTER_LEN, no_trace
 from tracer.render import kernel_inputs, render
 from tracer.scene import load_scene
+from tracer.tile_kernel import tile_scratch
 from tracer.variants import compile_report, compiled, label, variant_for
 
 import scenes as S
@@ -40,7 +41,7 @@ def _one_ray(geom, opts, origin, direction, t_max, driver):
     counts = np.zeros(COUNTER_LEN, np.int64)
     make_ray(ray, *origin, *direction, 0.0, 0.0, 0.0)
     hit[H_TIN] = t_max
-    args = (ray, hit, inputs.scene, inputs.query, inputs.sizes, no_trace(), counts)
+    args = (ray, hit, inputs.scene, inputs.query, no_trace(), counts, tile_scratch(inputs))
     compiled("ray", variant_for(geom, opts, driver=driver), args)(*args)
     return hit[H_TIN] < t_max, hit[H_TIN], hit[H_TOUT], counts.copy()
 

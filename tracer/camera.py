@@ -57,17 +57,20 @@ def framing_view(lo, hi, fov_deg: float = 35.0, direction=(0.55, -0.8, 0.45), up
     return View(tuple(eye), tuple(centre), tuple(up), fov_deg)
 
 
-def primary_rays(view: View, width: int, height: int, precision: str = "f32"):
+def primary_rays(view: View, width: int, height: int, precision: str = "f32", rect=None):
     """Origins and directions (height, width, 3) through pixel centres, row 0 at the top.
 
     Computed in float64, rounded to the working precision and widened again, so the
     arrays hold exactly the rays the kernel traces. Directions are not unit length.
+    rect: (y0, y1, x0, x1) for only those pixels' rays, (y1 - y0, x1 - x0, 3), bit for bit
+    the whole image's (one pixel's trace need not hold a whole image of rays).
     """
     dtype = PRECISION_DTYPE[precision]
     forward, right, up = view.basis()
     half = math.tan(math.radians(view.fov_deg) / 2.0)
-    xs = ((np.arange(width) + 0.5) * 2.0 / width - 1.0) * half * width / height
-    ys = (1.0 - (np.arange(height) + 0.5) * 2.0 / height) * half
+    y0, y1, x0, x1 = rect if rect is not None else (0, height, 0, width)
+    xs = ((np.arange(x0, x1) + 0.5) * 2.0 / width - 1.0) * half * width / height
+    ys = (1.0 - (np.arange(y0, y1) + 0.5) * 2.0 / height) * half
     dirs = forward + xs[None, :, None] * right + ys[:, None, None] * up
     dirs = dirs.astype(dtype).astype(np.float64)
     origins = np.broadcast_to(np.asarray(view.eye, float).astype(dtype).astype(np.float64), dirs.shape)

@@ -9,11 +9,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import re
 import sys
 from dataclasses import asdict, replace
 from pathlib import Path
 
+from . import memory
 from .options import CRITERIA, PRECISIONS, SPLITS, Options, option_fields, parse_assignment
+from .output_files import STDOUT, OutputFiles
+from .record import quote, read_value
 from .stats import CHANNELS
 
 SWEPT = ("criterion", "split", "precision", "mode")  # bench sweeps these instead of taking flags
@@ -21,35 +26,68 @@ SWEPT = ("criterion", "split", "precision", "mode")  # bench sweeps these instea
 
 # ---- argument types ---------------------------------------------------------------
 
+MAX_SIDE = 16384
+_INT = "([0-9]{1,9})"  # a plain ASCII integer (no '_', no other scripts' digits), not absurdly long
+_SIZE, _PIXEL, _COUNT = (re.compile(p, re.ASCII) for p in (f"{_INT}[xX]{_INT}", f"{_INT},{_INT}", _INT))
+
+
+def _ints(pattern, text: str):
+    """The integers of text matched whole by pattern, or None."""
+    m = pattern.fullmatch(text)
+    return None if m is None else tuple(int(g) for g in m.groups())
+
+
 def parse_size(text: str):
-    """'WxH' -> (W, H), positive integers."""
-    parts = text.lower().split("x")
+    """'WxH' -> (W, H), integers in 1..MAX_SIDE."""
+    size = _ints(_SIZE, text)
+    if size is None or not all(1 <= side <= MAX_SIDE for side in size):
+        raise argparse.ArgumentTypeError(f"expected WxH with integer sides in 1..{MAX_SIDE} (e.g. 512x512), "
+                                         f"got {quote(text)}")
+    return size
+
+
+def positive_int(text: str) -> int:
+    """A plain ASCII integer >= 1."""
+    value = _ints(_COUNT, text)
+    if value is None or value[0] < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {quote(text)}")
+    return value[0]
+
+
+def parse_memory(text: str) -> int:
     try:
-        w, h = (int(p) for p in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WxH with positive integers (e.g. 512x512), got {text!r}")
-    if w < 1 or h < 1 or w > 16384 or h > 16384:
-        raise argparse.ArgumentTypeError(f"expected WxH with sides in 1..16384, got {text!r}")
-    return w, h
+        return memory.parse_bytes(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def parse_map(text: str):
     """'CHANNEL=PNG' -> (channel, path), the channel one of stats.CHANNELS."""
     name, sep, path = text.partition("=")
     if not sep or not path:
-        raise argparse.ArgumentTypeError(f"expected CHANNEL=PNG, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected CHANNEL=PNG, got {quote(text)}")
     if name not in CHANNELS:
-        raise argparse.ArgumentTypeError(f"unknown channel {name!r} (known: {', '.join(CHANNELS)})")
+        raise argparse.ArgumentTypeError(f"unknown channel {quote(name)} (known: {', '.join(CHANNELS)})")
     return name, path
 
 
 def parse_pixel(text: str):
     """'X,Y' -> (X, Y): column and row (row 0 at the top)."""
-    try:
-        x, y = (int(p) for p in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected X,Y with integer column and row, got {text!r}")
-    return x, y
+    pixel = _ints(_PIXEL, text)
+    if pixel is None:
+        raise argparse.ArgumentTypeError(f"expected X,Y with non-negative integer column and row, got {quote(text)}")
+    return pixel
+
+
+def option_type(f):
+    """The argparse type of field f's flag: read_value (type, integrality, range) as argparse errors."""
+    def read(raw):
+        try:
+            return read_value(f, raw)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+    read.__name__ = type(f.default).__name__
+    return read
 
 
 def option_flag(f) -> str:
@@ -65,12 +103,13 @@ def add_option_flags(parser, exclude=()):
         meta = f.metadata
         group = groups.get(meta["group"]) or groups.setdefault(
             meta["group"], parser.add_argument_group(f"{meta['group'].lower()} options"))
-        extra = f"; range {meta['lo']}..{meta['hi']}" if meta["lo"] is not None else ""
+        extra = f"; {'integer' if type(f.default) is int else 'range'} {meta['lo']}..{meta['hi']}" \
+            if meta["lo"] is not None else ""
         if isinstance(f.default, bool):  # --trims / --no-trims
             group.add_argument(option_flag(f), dest=f"opt_{f.name}", action=argparse.BooleanOptionalAction,
                                default=None, help=f"{meta['help']} (default: {'on' if f.default else 'off'})")
             continue
-        group.add_argument(option_flag(f), dest=f"opt_{f.name}", type=type(f.default), default=None,
+        group.add_argument(option_flag(f), dest=f"opt_{f.name}", type=option_type(f), default=None,
                            choices=meta["choices"], metavar=None if meta["choices"] else f.name.upper(),
                            help=f"{meta['help']} (default: {f.default}{extra})")
     parser.add_argument("--set", action="append", default=[], metavar="OPTION=VALUE",
@@ -91,13 +130,29 @@ def options_from_args(args) -> Options:
     return opts
 
 
-def _check_writable(*paths):
-    """Fail before the (slow) render if an output's directory does not exist."""
-    for p in paths:
-        if p is not None and p != "-":
-            parent = Path(p).resolve().parent
-            if not parent.is_dir():
-                raise ValueError(f"{p}: output directory {parent} does not exist")
+def scene_files(scene) -> list:
+    """The files a loaded scene was read from: the scene file and every file it refers to."""
+    base = os.path.dirname(os.path.abspath(scene.path))
+    return [scene.path] + [os.path.join(base, o.source) for o in scene.objects
+                           if o.source not in ("inline", scene.path)]
+
+
+def planned_outputs(*outputs, scene=None) -> OutputFiles:
+    """The run's outputs, (flag, path[, stdout allowed]) each, checked before any work (see
+    output_files): none may be the scene file."""
+    outs = OutputFiles()
+    for flag, path, *stdout in outputs:
+        outs.add(flag, path, stdout=bool(stdout and stdout[0]))
+    outs.refuse_inputs([scene], "the scene file")
+    return outs
+
+
+def load_inputs(outs: OutputFiles, path):
+    """Load the scene; refuse any output that is a file the scene refers to (before any render)."""
+    from .scene import load_scene
+    scene = load_scene(path)
+    outs.refuse_inputs(scene_files(scene)[1:], "a file the scene refers to")
+    return scene
 
 
 def _bar(total: int, desc: str, quiet: bool):
@@ -105,13 +160,14 @@ def _bar(total: int, desc: str, quiet: bool):
     return tqdm(total=total, desc=desc, unit="tile", file=sys.stderr, disable=quiet, leave=False)
 
 
-def _write_json(data, path):
+def _write_json(outs: OutputFiles, data, path):
     from .stats import json_safe
-    text = json.dumps(json_safe(data), indent=1)
-    if path is None or path == "-":
-        sys.stdout.write(text + "\n")
-    else:
-        Path(path).write_text(text + "\n")
+    outs.write_text(path, json.dumps(json_safe(data), indent=1) + "\n")
+
+
+def _write_png(outs: OutputFiles, image, path):
+    """A PIL image as PNG (whatever the file name says)."""
+    outs.write(path, lambda f: image.save(f, format="PNG"))
 
 
 def _compile_note(args, bar):
@@ -151,40 +207,45 @@ def _import_losses(args, scene) -> None:
 
 def cmd_render(args) -> int:
     from .render import reference_frame, render, tiles
-    from .scene import load_scene
     from .shade import shade, to_png
     from .stats import channel_image, error_stats, frame_stats
 
     maps = dict(args.map)
-    _check_writable(args.output, args.aov, args.effort_map, args.error_map, args.stats, *maps.values())
-    scene = load_scene(args.scene)
-    _import_losses(args, scene)
+    outs = planned_outputs(("-o", args.output), ("--aov", args.aov), ("--effort-map", args.effort_map),
+                           ("--error-map", args.error_map), ("--stats", args.stats, True),
+                           *((f"--map {name}", path) for name, path in maps.items()), scene=args.scene)
     opts = options_from_args(args)
-    width, height = args.size or scene.image_size or (512, 512)
-    with _bar(len(tiles(width, height, opts.tile_size)), "render", args.quiet) as bar:
-        frame = render(scene, opts, size=(width, height), progress=bar.update,
-                       on_compile=_compile_note(args, bar))
-    to_png(shade(frame, scene, opts.mode), args.output)
-    if args.aov:
-        frame.save_npz(args.aov)
-    if args.effort_map:
-        channel_image("effort", frame).save(args.effort_map, format="PNG")
-    ref = None
-    if args.error_map or args.stats or any(CHANNELS[name].needs_reference for name in maps):
-        with _bar(frame.tiles_total, "float64 reference", args.quiet) as bar:
-            ref = reference_frame(scene, frame, progress=bar.update, on_compile=_compile_note(args, bar))
-    if args.error_map:
-        channel_image("error", frame, ref).save(args.error_map, format="PNG")
-    for name, path in maps.items():
-        channel_image(name, frame, ref).save(path, format="PNG")
-    fs = frame_stats(frame)
-    if args.stats:
-        from .formats.losses import summary
-        from .variants import compile_report
-        _write_json({"scene": str(args.scene), "size": [width, height], "options": asdict(opts), **fs,
-                     "reference_time": ref.seconds, "error": error_stats(frame, ref),
-                     "kernels": compile_report(),
-                     "imports": {src: summary(r) for src, r in scene.import_report.items()}}, args.stats)
+    with outs:  # every output replaces its file at the end, or none does
+        scene = load_inputs(outs, args.scene)
+        _import_losses(args, scene)
+        width, height = args.size or scene.image_size or (512, 512)
+        needs_ref = bool(args.error_map or args.stats or any(CHANNELS[name].needs_reference for name in maps))
+        memory.check_render(width, height, reference=needs_ref, limit=args.memory_limit)
+        with _bar(len(tiles(width, height, opts.tile_size)), "render", args.quiet) as bar:
+            frame = render(scene, opts, size=(width, height), progress=bar.update,
+                           on_compile=_compile_note(args, bar))
+        outs.write(args.output, lambda f: to_png(shade(frame, scene, opts.mode), f))
+        if args.aov:
+            outs.write(args.aov, frame.save_npz)
+        if args.effort_map:
+            _write_png(outs, channel_image("effort", frame), args.effort_map)
+        ref = None
+        if needs_ref:
+            with _bar(frame.tiles_total, "float64 reference", args.quiet) as bar:
+                ref = reference_frame(scene, frame, progress=bar.update, on_compile=_compile_note(args, bar))
+        if args.error_map:
+            _write_png(outs, channel_image("error", frame, ref), args.error_map)
+        for name, path in maps.items():
+            _write_png(outs, channel_image(name, frame, ref), path)
+        fs = frame_stats(frame)
+        if args.stats:
+            from .formats.losses import summary
+            from .variants import compile_report
+            _write_json(outs, {"scene": str(args.scene), "size": [width, height], "options": asdict(opts), **fs,
+                               "reference_time": ref.seconds, "error": error_stats(frame, ref),
+                               "kernels": compile_report(),
+                               "imports": {src: summary(r) for src, r in scene.import_report.items()}},
+                        args.stats)
     _say(args, f"{args.output}: {width}x{height}, {fs['hits']} hits of {fs['rays']} rays in "
                f"{fs['time']:.3f} s, mean effort {fs['effort']['mean']:.1f} box tests/ray")
     return 0
@@ -192,18 +253,19 @@ def cmd_render(args) -> int:
 
 def cmd_trace(args) -> int:
     from .plot import trace_plot
-    from .scene import load_scene
     from .trace_one import trace_pixel
 
-    _check_writable(args.output, args.plot)
-    scene = load_scene(args.scene)
-    _import_losses(args, scene)
+    output = args.output or STDOUT
+    outs = planned_outputs(("-o", output, True), ("--plot", args.plot), scene=args.scene)
     opts = options_from_args(args)
-    x, y = args.pixel
-    tr = trace_pixel(scene, opts, x, y, size=args.size)
-    _write_json(tr.to_json(), args.output)
-    if args.plot:
-        trace_plot(tr, args.plot)
+    with outs:
+        scene = load_inputs(outs, args.scene)
+        _import_losses(args, scene)
+        x, y = args.pixel
+        tr = trace_pixel(scene, opts, x, y, size=args.size)
+        _write_json(outs, tr.to_json(), output)
+        if args.plot:
+            outs.write(args.plot, lambda f: trace_plot(tr, f))
     ev = tr.events
     counts = ", ".join(f"{ev.count(k)} {k}" for k in ("split", "miss", "pruned", "hit"))
     what = (f"hit patch {tr.patch} at t={tr.t:.9g}, box {tr.hit_step()}" if tr.hit else "miss")
@@ -214,18 +276,19 @@ def cmd_trace(args) -> int:
 
 def cmd_bench(args) -> int:
     from .bench import format_table, run_bench
-    from .scene import load_scene
 
-    _check_writable(args.json)
-    scene = load_scene(args.scene)
+    outs = planned_outputs(("--json", args.json, True), scene=args.scene)
     base = options_from_args(args)
-    log = None if args.quiet else (lambda text: print(text, file=sys.stderr, flush=True))
-    result = run_bench(scene, base, size=args.size, runs=args.runs, criteria=args.criteria,
-                       splits=args.splits, precisions=args.precisions, log=log)
-    result["scene"] = str(args.scene)
+    with outs:
+        scene = load_inputs(outs, args.scene)
+        memory.check_render(*args.size, reference=True, frames=2, limit=args.memory_limit)
+        log = None if args.quiet else (lambda text: print(text, file=sys.stderr, flush=True))
+        result = run_bench(scene, base, size=args.size, runs=args.runs, criteria=args.criteria,
+                           splits=args.splits, precisions=args.precisions, log=log)
+        result["scene"] = str(args.scene)
+        if args.json:
+            _write_json(outs, result, args.json)
     print(format_table(result))
-    if args.json:
-        _write_json(result, args.json)
     return 0
 
 
@@ -238,6 +301,12 @@ def _add_strict(parser):
     parser.add_argument("--strict", action="store_true",
                         help="fail (exit 2) if an imported file (IGES) lost anything: entities not "
                              "converted, or a file cut short")
+
+
+def _add_memory_limit(parser):
+    parser.add_argument("--memory-limit", type=parse_memory, metavar="SIZE",
+                        help=f"refuse a render estimated to need more memory than this, e.g. 8G or 512M "
+                             f"(default: ${memory.ENV}, else {memory.DEFAULT_FRACTION * 100:.0f}%% of physical memory)")
 
 
 def add_commands(sub) -> None:
@@ -257,6 +326,7 @@ def add_commands(sub) -> None:
     p.add_argument("--stats", metavar="JSON", help="rays, hits, time, effort and error statistics, the kernel "
                    "variants compiled and their compile times (computes the float64 reference)")
     add_option_flags(p)
+    _add_memory_limit(p)
     _add_quiet(p)
     _add_strict(p)
     p.set_defaults(func=cmd_render)
@@ -275,7 +345,7 @@ def add_commands(sub) -> None:
     p = sub.add_parser("bench", help="time and check every criterion x split x precision")
     p.add_argument("--scene", default=str(_default_scene()), help="scene (default: sample_models/teapot.json)")
     p.add_argument("--size", type=parse_size, default=(512, 512), help="image size WxH (default: 512x512)")
-    p.add_argument("--runs", type=int, default=5, help="timed runs per configuration after one warm-up "
+    p.add_argument("--runs", type=positive_int, default=5, help="timed runs per configuration after one warm-up "
                    "(default: 5; the median is reported)")
     p.add_argument("--json", metavar="OUT", help="write all results as JSON")
     p.add_argument("--criteria", nargs="+", choices=CRITERIA, default=list(CRITERIA), metavar="C",
@@ -285,6 +355,7 @@ def add_commands(sub) -> None:
     p.add_argument("--precisions", nargs="+", choices=PRECISIONS, default=list(PRECISIONS), metavar="P",
                    help=f"precisions (default: {', '.join(PRECISIONS)})")
     add_option_flags(p, exclude=SWEPT)
+    _add_memory_limit(p)
     _add_quiet(p)
     p.set_defaults(func=cmd_bench)
 

@@ -18,7 +18,7 @@ from .jit import njit, specialise
 
 from .ray import H_TIN
 from .search_steps import HIT, MISS, PRUNED, accept, enter_frame, judge, open_child, report, root, set_event
-from .search_steps import subdivide, trace_hit, trim_state
+from .search_steps import subdivide, tighten, trace_hit, trim_state
 from .subpatch import M_TIN, patch_info
 
 
@@ -52,6 +52,7 @@ def _search(p, lv, trims, ray, hit, q, sl, trace):
                 if STOP_AT_FIRST:  # noqa: F821
                     return effort
             continue
+        tighten(sl, a, pa, lv, HAS_RATIONAL)  # noqa: F821
         sp = subdivide(sl, a, sp, pa, lv, lray, q, hit[H_TIN], d_crit, shrank, trace, TRACING,  # noqa: F821
                        HAS_GENERAL)  # noqa: F821
         effort += 2

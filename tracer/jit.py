@@ -68,6 +68,34 @@ def _one_scope_copy_per_inline() -> None:
 _one_scope_copy_per_inline()
 
 
+def _untyped_ir_once_per_callee() -> None:
+    """numba re-runs a callee's whole untyped pipeline (bytecode to IR, its own inlining, branch
+    pruning) at every call site it inlines: the search's helpers were translated 150 times.
+    The IR comes out the same each time for the same function and flags, and inline_ir copies
+    it before changing anything, so inline_function makes it once and reuses it. (Typed
+    inlining of overloads mutates the IR it gets, so run_untyped_passes itself stays as is.)"""
+    from numba.core import inline_closurecall
+
+    worker = inline_closurecall.InlineWorker
+    if getattr(worker, "_psrt_memo", False):
+        return
+    made = {}
+
+    def inline_function(self, caller_ir, block, i, function, arg_typs=None):
+        key = (function, self.flags.nrt, self.flags.error_model, self.flags.no_rewrites)
+        if key not in made:
+            made[key] = self.run_untyped_passes(function)
+        self.flags.enable_ssa = False  # what run_untyped_passes leaves behind, as before
+        return self.inline_ir(caller_ir, block, i, made[key], function.__code__.co_freevars,
+                              arg_typs=arg_typs)
+
+    worker.inline_function = inline_function
+    worker._psrt_memo = True
+
+
+_untyped_ir_once_per_callee()
+
+
 _RELATIVE_IMPORT = re.compile(rb"^\s*from \.([\w.]*) import ([\w, ()]+)", re.MULTILINE)
 
 

@@ -54,6 +54,9 @@ TRACE_F, TRACE_I = 11, 3
 # Per-ray scratch of the tile kernel: ray and hit records, counters, normal evaluation.
 RayScratch = namedtuple("RayScratch", "ray hit counts pts scratch work normal")
 
+# A kernel call's scratch: Slots, the aggregate's walk stack (aggregate.WalkStack), RayScratch.
+TileScratch = namedtuple("TileScratch", "slots stack ray")
+
 
 def no_trace() -> Trace:
     """The Trace record for kernels built without tracing (never written)."""

@@ -20,6 +20,7 @@ from .geometry import Geometry, prepare
 from .kernel_channels import CHANNEL_NAMES, Outputs, allocate
 from .options import CRITERION_CODE, SPLIT_CODE, Options
 from .records import Leaves, Query, Trims, no_trace
+from .tile_kernel import tile_scratch
 from .variants import compiled, label, variant_for
 
 CONTRACT_NAMES = ("ray_origin", "ray_dir", "hit", "t", "position", "box_min", "box_max",
@@ -128,14 +129,14 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     outs = frame.outputs()
     trace = no_trace()
     variant = variant_for(geom, opts, driver=driver)
-    args = (inputs.scene, inputs.query, inputs.sizes, inputs.leaf_patch, outs, trace)
-    kernel = compiled("tile", variant, ((0, 0, 0, 0), origins, dirs) + args, on_compile)
+    args = (inputs.scene, inputs.query, inputs.sizes[0], inputs.leaf_patch, outs, trace)
+    kernel = compiled("tile", variant, ((0, 0, 0, 0), origins, dirs) + args + (tile_scratch(inputs),), on_compile)
     frame.extras["variant"] = label(variant)
 
     def work(rect):
         if cancel is not None and cancel.is_set():
             return None
-        kernel(rect, origins, dirs, *args)
+        kernel(rect, origins, dirs, *args, tile_scratch(inputs))
         return rect
 
     start = time.perf_counter()

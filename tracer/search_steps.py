@@ -243,15 +243,20 @@ def trace_hit(trace, sl, a, hit):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _tighten(sl, a, pa, lv):
+def tighten(sl, a, pa, lv, has_rational):
     """Re-derive slot a from float64 when its error band nears its box, else re-centre it when
-    the box is much smaller than its coordinates (midpoints then round relative to the box)."""
+    the box is much smaller than its coordinates (midpoints then round relative to the box).
+    has_rational: the variant has rational patches (a constant: integral variants never
+    compile refine_rational)."""
     box = sl.box
     mf = sl.mf
     ext = max(box[a, 3] - box[a, 0], box[a, 4] - box[a, 1], box[a, 5] - box[a, 2])
     if pa.cumulative and (mf[a, M_E] + mf[a, M_E + 1] + mf[a, M_E + 2]) * REFINE > ext:
-        if pa.rational:
-            refine_rational(sl, a, pa, lv)
+        if has_rational:
+            if pa.rational:
+                refine_rational(sl, a, pa, lv)
+            else:
+                refine(sl, a, pa, lv)
         else:
             refine(sl, a, pa, lv)
     elif ext * RECENTRE < mf[a, M_MAG]:
@@ -260,12 +265,11 @@ def _tighten(sl, a, pa, lv):
 
 @njit(cache=True, nogil=True, inline='always')
 def subdivide(sl, a, sp, pa, lv, ray, q, t_max, d_crit, shrank, trace, tracing, has_general):
-    """Halve slot a (stack position sp) and push the halves that stay candidates, the near one
-    on top. Returns the new stack height."""
+    """Halve slot a (stack position sp; tightened first) and push the halves that stay
+    candidates, the near one on top. Returns the new stack height."""
     mf = sl.mf
     mi = sl.mi
     order = sl.order
-    _tighten(sl, a, pa, lv)
     if shrank:
         direction = split_direction(sl, a, pa, ray, q.split_mode)
     else:

@@ -47,8 +47,14 @@ MI_LEN = 5
 RECENTRE = 16.0     # re-centre once the box is this many times smaller than its coordinates
 REFINE = 64.0       # re-derive from float64 once the data error is over 1/64 of the box
 SUB_ERR_BITS = 8    # float64: a split's rounding stays below 2^-(bits - 8) of the magnitude
-# _COLD: re-centring and re-deriving happen a few times a ray; they are called, not inlined, as
-# numba's inlining of the search's deep call tree costs compile time more than linearly.
+# Calls or inlines. numba inlines an inline='always' helper into its own IR once per call site,
+# and its type inference, SSA and lowering then cost more than linearly in the kernel's size; a
+# plain call is typed and lowered once, and LLVM still inlines it where that pays. So leaf
+# operations used at several call sites are calls (_CALLED: corner, raw_box, widen,
+# rational_bound, snap_*, ulp), and so are the rare re-centring and
+# re-deriving (_COLD); operations given a variant flag as an argument stay inlined, so that the
+# flag stays a constant their branches are pruned by (split, tighten, open_child). The hull and
+# slab tests stay inlined too: LLVM leaves them as calls, which cost the search 8 %.
 
 
 def max_depth_for(precision_bits: int) -> int:
@@ -72,20 +78,20 @@ def patch_info(lv, p, bits, has_rational, has_cubic, has_linear):
                      1.0 - math.ldexp(1.0, 4 - bits))  # a real decrease: more than 16 ulps
 
 
-@njit(cache=True, nogil=True, inline='always')
+@njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
 def ulp(x, bits):
     """Spacing of `bits`-bit floats at |x| (x != 0)."""
     return math.ldexp(1.0, math.frexp(x)[1] - bits)
 
 
-@njit(cache=True, nogil=True, inline='always')
+@njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
 def snap_down(q, g):
     """The largest multiple of the grid step g <= q (exact: g is a power of two); q itself when
     there is no grid (g = 0, float64)."""
     return math.floor(q / g) * g if g > 0.0 else q
 
 
-@njit(cache=True, nogil=True, inline='always')
+@njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
 def snap_up(q, g):
     return math.ceil(q / g) * g if g > 0.0 else q
 
@@ -96,7 +102,7 @@ def _to_working(q, bits):
     return q if bits >= 53 else np.float64(np.float32(q))
 
 
-@njit(cache=True, nogil=True, inline='always')
+@njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
 def widen(sl, s, sub_scale):
     """Widen the raw control box of slot s by its error bound (M_E); sets M_MAG, M_W and M_D.
 
@@ -119,7 +125,7 @@ def widen(sl, s, sub_scale):
     mf[s, M_D] = (box[s, 3] - box[s, 0]) + (box[s, 4] - box[s, 1]) + (box[s, 5] - box[s, 2])
 
 
-@njit(cache=True, nogil=True, inline='always')
+@njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
 def rational_bound(sl, s, pa, eps64):
     """M_E of a rational slot from its homogeneous bounds (M_EH, M_EW), before widening: the
     stored surface N~/W~ differs from the float64 leaf's N/W by (dN - S~ dW) / W per axis, with
@@ -162,7 +168,7 @@ def within_ulps(sl, s, ulps, bits, lv, p):
     return True
 
 
-@njit(cache=True, nogil=True, inline='always')
+@njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
 def raw_box(sl, s, count, is_rational):
     if is_rational:
         control_box_rational(sl.buf, s, count, sl.box)
@@ -295,7 +301,7 @@ def refine_rational(sl, s, pa, lv):
     widen(sl, s, 0.0)
 
 
-@njit(cache=True, nogil=True, inline='always')
+@njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
 def corner(buf, s, k, c, rational):
     """Coordinate c of control point k in slot s, homogenised for rational patches."""
     if rational:

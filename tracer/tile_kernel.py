@@ -1,8 +1,8 @@
 """The per-tile kernel: primary rays of one image rectangle, writing the kernel channels.
 
-Called from worker threads (it releases the GIL), one call per tile; all scratch is
-allocated per call so threads share nothing but the output arrays, of which each tile
-writes only its own rectangle. Built per kernel variant (variants.py).
+Called from worker threads (it releases the GIL), one call per tile, each with scratch of its
+own (tile_scratch), so threads share nothing but the output arrays, of which each tile writes
+only its own rectangle. Built per kernel variant (variants.py).
 """
 from __future__ import annotations
 
@@ -14,42 +14,32 @@ from .aggregate import WALKS, WalkStack
 from .drivers import make_search
 from .jit import njit, specialise
 from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, make_ray
-from .records import C_EFFORT, C_NODES, C_PATCHES, COUNTER_LEN, HIT_LEN, RAY_LEN, RayScratch, Slots
+from .records import C_EFFORT, C_NODES, C_PATCHES, COUNTER_LEN, RAY_LEN, Slots, TileScratch, ray_scratch
 from .subpatch import MF_LEN, MI_LEN
 from .hit_normal import hit_normal
 from .trim_kernel import MAX_SPLIT_DEPTH
 
 
-@njit(cache=True, nogil=True)
-def new_slots(max_depth, max_points, dtype_like, trim_points):
-    """Per-thread sub-patch stack (records.Slots) in the working dtype of dtype_like."""
-    slots = max_depth + 2
-    return Slots(np.zeros((slots, 4, max_points), dtype_like.dtype), np.zeros((slots, 6)),
-                 np.zeros((slots, MF_LEN)), np.zeros((slots, MI_LEN), np.int32),
-                 np.arange(slots).astype(np.uint32),  # unsigned slot indices: no negative-index fix-ups
-                 np.zeros(RAY_LEN), np.zeros((4, max_points)),
-                 np.zeros((MAX_SPLIT_DEPTH + 4, trim_points, 3)), np.zeros((MAX_SPLIT_DEPTH + 4, 6)))
-
-
-@njit(cache=True, nogil=True)
-def new_ray_scratch(max_points):
-    return RayScratch(np.zeros(RAY_LEN), np.zeros(HIT_LEN), np.zeros(COUNTER_LEN, np.int64),
-                      np.zeros((4, max_points)), np.zeros((4, max_points)), np.zeros((6, 4)), np.zeros(3))
-
-
-def _render_tile(rect, origins, dirs, scene, q, sizes, leaf_patch, out, trace):
-    """The tile kernel template (see make_tile_kernel)."""
-    lv = scene[0]
-    slope, max_points, stack_nodes, trim_points = sizes
-    sl = new_slots(q.max_depth, max_points, lv.ctrl, trim_points)
+def tile_scratch(inputs) -> TileScratch:
+    """A thread's scratch for one kernel call (kernel_inputs' records): the sub-patch stack in the
+    working dtype, the aggregate's walk stack and the per-ray records. Made here, in numpy, so
+    the kernels allocate nothing (no reference counting, and no allocating kernel to compile)."""
+    lv = inputs.scene[0]
+    _, max_points, stack_nodes, trim_points = inputs.sizes
+    slots = inputs.query.max_depth + 2
+    sl = Slots(np.zeros((slots, 4, max_points), lv.ctrl.dtype), np.zeros((slots, 6)),
+               np.zeros((slots, MF_LEN)), np.zeros((slots, MI_LEN), np.int32),
+               np.arange(slots).astype(np.uint32),  # unsigned slot indices: no negative-index fix-ups
+               np.zeros(RAY_LEN), np.zeros((4, max_points)),
+               np.zeros((MAX_SPLIT_DEPTH + 4, trim_points, 3)), np.zeros((MAX_SPLIT_DEPTH + 4, 6)))
     stack = WalkStack(np.zeros(stack_nodes, np.int32), np.zeros(stack_nodes))
-    rs = new_ray_scratch(max_points)
-    pixels(rect, origins, dirs, scene, q, slope, leaf_patch, out, trace, sl, stack, rs)  # noqa: F821
+    return TileScratch(sl, stack, ray_scratch(max_points))
 
 
-def _pixels(rect, origins, dirs, scene, q, slope, leaf_patch, out, trace, sl, stack, rs):
-    """render_tile's pixel loop, on scratch it was given (template)."""
+def _render_tile(rect, origins, dirs, scene, q, slope, leaf_patch, out, trace, scratch):
+    """The tile kernel template (see make_tile_kernel)."""
     lv, trims, agg = scene
+    sl, stack, rs = scratch
     ray = rs.ray
     hit = rs.hit
     counts = rs.counts
@@ -110,29 +100,27 @@ def _walk_of(variant):
 
 
 def make_tile_kernel(variant):
-    """render_tile(rect, origins, dirs, scene, q, sizes, leaf_patch, out, trace) for one variant.
+    """render_tile(rect, origins, dirs, scene, q, slope, leaf_patch, out, trace, scratch) for one
+    variant.
 
     rect: (y0, y1, x0, x1); origins/dirs: (H, W, 3) float64 rays as traced. scene: (lv, trims,
-    agg) records; q: records.Query; sizes: (detail_slope, max_points, stack_nodes, trim_points),
-    the threshold of detail per unit distance (adaptive criterion; 0 otherwise) and scratch
-    sizes. The kernel's patches are leaves, and leaf_patch maps them to scene patches for the
-    output. out: kernel_channels.Outputs; uv is in the parameters of the patch's surface (NURBS).
+    agg) records; q: records.Query; slope: the threshold of detail per unit distance (adaptive
+    criterion; 0 otherwise). The kernel's patches are leaves, and leaf_patch maps them to scene
+    patches for the output. out: kernel_channels.Outputs; uv is in the parameters of the patch's
+    surface (NURBS). scratch: the calling thread's TileScratch (tile_scratch).
     """
     # The pixel loop allocates nothing: no reference counts (see drivers).
-    pixels = njit(cache=True, nogil=True, _nrt=False)(specialise(_pixels, walk=_walk_of(variant)))
-    return njit(cache=True, nogil=True)(specialise(_render_tile, pixels=pixels))
+    return njit(cache=True, nogil=True, _nrt=False)(specialise(_render_tile, walk=_walk_of(variant)))
 
 
-def _trace_one_ray(ray, hit, scene, q, sizes, trace, counts):
+def _trace_one_ray(ray, hit, scene, q, trace, counts, scratch):
     """The one-ray kernel template (see make_ray_kernel)."""
     lv, trims, agg = scene
-    _, max_points, stack_nodes, trim_points = sizes
-    sl = new_slots(q.max_depth, max_points, lv.ctrl, trim_points)
-    stack = WalkStack(np.zeros(stack_nodes, np.int32), np.zeros(stack_nodes))
+    sl, stack, _ = scratch
     walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts)  # noqa: F821
 
 
 def make_ray_kernel(variant):
-    """trace_one_ray(ray, hit, scene, q, sizes, trace, counts): one ray through the variant's walk
-    (the pixel inspector: `trace` records every box). hit[H_TIN] holds the initial t_max."""
-    return njit(cache=True, nogil=True)(specialise(_trace_one_ray, walk=_walk_of(variant)))
+    """trace_one_ray(ray, hit, scene, q, trace, counts, scratch): one ray through the variant's
+    walk (the pixel inspector: `trace` records every box). hit[H_TIN] holds the initial t_max."""
+    return njit(cache=True, nogil=True, _nrt=False)(specialise(_trace_one_ray, walk=_walk_of(variant)))

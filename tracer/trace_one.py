@@ -16,6 +16,7 @@ from .options import Options
 from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN, make_ray
 from .records import C_EFFORT, COUNTER_LEN, new_trace
 from .render import kernel_inputs
+from .tile_kernel import tile_scratch
 from .search_steps import EVENT_NAMES
 from .hit_normal import hit_normal
 from .variants import compiled, variant_for
@@ -96,7 +97,7 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
     counts = np.zeros(COUNTER_LEN, np.int64)
     make_ray(ray, o[0], o[1], o[2], d[0], d[1], d[2], 0.0, 0.0, slope * length)
     hit[H_TIN] = math.inf
-    args = (ray, hit, inputs.scene, inputs.query, inputs.sizes, trace, counts)
+    args = (ray, hit, inputs.scene, inputs.query, trace, counts, tile_scratch(inputs))
     compiled("ray", variant_for(geom, opts, trace=True), args)(*args)
     effort = int(counts[C_EFFORT])
     leaf_patch = inputs.leaf_patch
@@ -146,5 +147,5 @@ def trace_pixel(scene, opts: Options, x: int, y: int, *, size=None, view: View |
         raise ValueError(f"pixel {x},{y} is outside the {width}x{height} image")
     view = view or view_of(scene)
     geom = geometry if geometry is not None else prepare(scene, opts.precision)
-    origins, dirs = primary_rays(view, width, height, opts.precision)
-    return trace_ray_steps(geom, opts, origins[y, x], dirs[y, x], view.pixel_angle(height), (x, y))
+    origins, dirs = primary_rays(view, width, height, opts.precision, rect=(y, y + 1, x, x + 1))
+    return trace_ray_steps(geom, opts, origins[0, 0], dirs[0, 0], view.pixel_angle(height), (x, y))

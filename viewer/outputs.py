@@ -1,4 +1,9 @@
-"""Files the viewer writes: screenshots (PNG), the render's AOVs (npz), the inspected trace (JSON)."""
+"""Files the viewer writes: screenshots (PNG), the render's AOVs (npz), the inspected trace (JSON).
+
+Each is written as the CLI writes its outputs (tracer.output_files.write_atomic): to a temporary
+file beside the target, renamed onto it once complete, so a failed export leaves the old file
+as it was; a directory, FIFO or device at the path is refused.
+"""
 from __future__ import annotations
 
 import json
@@ -7,6 +12,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from tracer.output_files import write_atomic
 from tracer.stats import json_safe
 
 from .picking import inspection_json
@@ -22,7 +28,8 @@ def _target(path) -> Path:
 def write_png(rgb: np.ndarray, path) -> Path:
     """(H, W, 3) uint8, row 0 at the top."""
     path = _target(path)
-    Image.fromarray(rgb, "RGB").save(path, format="PNG")
+    image = Image.fromarray(rgb, "RGB")
+    write_atomic(path, lambda f: image.save(f, format="PNG"))
     return path
 
 
@@ -31,7 +38,7 @@ def write_aovs(frame, path) -> Path:
     if frame is None:
         raise ValueError("no finished render to export yet")
     path = _target(path)
-    frame.save_npz(path)
+    write_atomic(path, frame.save_npz)
     return path
 
 
@@ -40,5 +47,6 @@ def write_trace(inspection, path) -> Path:
     if inspection is None:
         raise ValueError("no pixel inspected yet: click the image first")
     path = _target(path)
-    path.write_text(json.dumps(json_safe(inspection_json(inspection)), indent=1))
+    text = json.dumps(json_safe(inspection_json(inspection)), indent=1)
+    write_atomic(path, lambda f: f.write(text.encode("utf-8")))
     return path
