@@ -122,7 +122,7 @@ def test_revolution_trims_follow_the_angle_map(impeller, doc):
     for fs in trimmed[:6]:
         tri = __import__("tracer.trim", fromlist=["build_trimset"]).build_trimset([fs.loops])
         p = doc[fs.info.entity["de"]].parameters[0]
-        conv = _Converter(doc.values(), {}, ",", {}, "x")
+        conv = _Converter(doc.values(), {}, "x")
         circ = CircleParam.for_sweep(*fs.surface.domain[2:])
         bptr = int(doc[int(p[4])].parameters[0][3])
         for seg in conv.param_curve(bptr):
@@ -161,12 +161,20 @@ def test_unsupported_entities_are_reported(tmp_path):
     de = next(i for i, l in enumerate(lines) if l[72] == "D" and l[:8].strip() == "144")
     for i in (de, de + 1):
         lines[i] = "     143" + lines[i][8:]
+    seq = int(lines[de][73:80])
+    first_p = next(i for i, l in enumerate(lines) if l[72] == "P")
+    p = first_p + int(lines[de][8:16]) - 1  # its parameter data names the type too
+    assert lines[p].startswith("144,") and int(lines[p][64:72]) == seq
+    lines[p] = "143," + lines[p][4:]
     path = tmp_path / "edited.igs"
     path.write_text("\n".join(lines) + "\n", encoding="latin-1")
     r = load_iges(path).report
     assert r["surfaces"] == 276 and r["unsupported"] == {143: 1}
     assert r["counts"]["orphan"][128] == 1 and r["counts"]["orphan"][142] == 1
     assert sum(sum(c.values()) for c in r["counts"].values()) == 4615
+    base = int(lines[p][4:].split(",")[0])  # the 143's surface, now drawn by nobody
+    assert r["lost"] == 2 and [(g["type"], g["kind"], g["de"]) for g in r["losses"]] == [
+        (128, "orphan", [base]), (143, "unsupported entity type", [seq])]
 
 
 def test_not_iges(tmp_path):
@@ -176,3 +184,149 @@ def test_not_iges(tmp_path):
         load_iges(bad)
     with pytest.raises(SceneError, match="file not found"):
         load_iges(tmp_path / "missing.igs")
+
+
+# ---- IGES as written by real CAD tools, and damaged ----------------------------------------
+
+from iges_writer import tiny_iges  # noqa: E402
+from tracer.formats.losses import strict_check  # noqa: E402
+
+
+def tiny_file(tmp_path, data, name="tiny.igs") -> Path:
+    path = tmp_path / name
+    path.write_bytes(data if isinstance(data, bytes) else data.encode("ascii"))
+    return path
+
+
+def replace_in_line(text: str, section_seq: str, old: str, new: str) -> str:
+    """text with `old` replaced by `new` (same width) in the line ending in section_seq ('P      9')."""
+    assert len(old) == len(new)
+    lines = text.split("\n")
+    k = next(i for i, l in enumerate(lines) if l.endswith(section_seq))
+    assert old in lines[k][:72], (lines[k], old)
+    lines[k] = lines[k].replace(old, new, 1)
+    return "\n".join(lines)
+
+
+@pytest.mark.parametrize("variant", ["lf", "crlf", "cr", "80-byte records", "latin-1", "utf-8 by bytes",
+                                     "utf-8 by characters"])
+def test_iges_text_is_read_as_fixed_columns(tmp_path, variant):
+    """Line endings and stray bytes >= 0x80 (an accented author) change nothing but the report."""
+    accented = {"start": "Exportaci\u00f3n de Jos\u00e9", "author": "Jos\u00e9 M\u00fcller"}
+    if variant == "utf-8 by characters":  # columns counted in characters: lines of 81, 82 bytes
+        data = tiny_iges(**accented).encode("utf-8")
+    elif variant == "utf-8 by bytes":  # columns counted in bytes (the same bytes, as Latin-1 text)
+        data = tiny_iges(**{k: v.encode("utf-8").decode("latin-1") for k, v in accented.items()}).encode("latin-1")
+    elif variant == "latin-1":
+        data = tiny_iges(**accented).encode("latin-1")
+    else:
+        text = tiny_iges()
+        data = {"lf": text, "crlf": text.replace("\n", "\r\n"), "cr": text.replace("\n", "\r"),
+                "80-byte records": text.replace("\n", "")}[variant].encode("ascii")
+    r = load_iges(tiny_file(tmp_path, data)).report
+    assert r["surfaces"] == 2 and r["trimmed"] == 1 and r["lost"] == 0 and r["notes"] == []
+    assert r["units"] == "MM" and r["tolerance"] == 1e-8
+    if variant.startswith(("latin", "utf")):
+        assert r["text"]["non_ascii_bytes"] in (4, 8) and r["text"]["non_ascii_first_line"] == 1
+    else:
+        assert r["text"] == {"line_endings": {"lf": "LF", "crlf": "CRLF", "cr": "CR",
+                                              "80-byte records": "none (80-byte records)"}[variant]}
+
+
+@pytest.mark.parametrize("edit, line, words", [
+    (lambda t: t.replace("D      3", "D      4", 1), 7, "directory section D 3: sequence number '4', expected 3"),
+    (lambda t: t.replace("     1P      2", "     1P      x", 1), 18,
+     "parameter section P 2: sequence number 'x', expected 2"),
+    (lambda t: t.replace("D      5", "X      5", 1), 9, "column 73 holds 'X'"),
+    (lambda t: (lambda ls: "\n".join(ls[:10] + ["short line"] + ls[10:]))(t.split("\n")), 11,
+     "not an IGES line: 10 columns"),
+    (lambda t: (lambda ls: "\n".join(ls[:3] + ls[4:5] + ls[3:4] + ls[5:]))(t.split("\n")), 5,
+     "a global section line after the directory section"),
+    (lambda t: t.replace(t.split("\n")[3], t.split("\n")[3] + "extra columns"), 4, "93 columns, expected 80"),
+])
+def test_iges_structure_errors_name_section_and_line(tmp_path, edit, line, words):
+    path = tiny_file(tmp_path, edit(tiny_iges()))
+    with pytest.raises(SceneError) as info:
+        load_iges(path)
+    assert info.value.line == line and words in str(info.value), str(info.value)
+    assert str(info.value).startswith(f"{path}:{line}: ") and "\n" not in str(info.value)
+
+
+def groups(report):
+    return {(g["type"], g["kind"]): g["de"] for g in report["losses"]}
+
+
+def test_iges_nan_parameter_is_reported_by_entry_and_line(tmp_path):
+    path = tiny_file(tmp_path, replace_in_line(tiny_iges(), "P      9", "2.00", "nan "))
+    r = load_iges(path).report
+    assert r["surfaces"] == 1 and r["lost"] == 2 and r["lost_surfaces"] == 2
+    assert groups(r) == {(144, "conversion failed"): [9], (128, "unreadable parameter data"): [3]}
+    reason = {g["type"]: g["reason"] for g in r["losses"]}
+    assert reason[128].startswith("P 9: 'nan' is not finite")
+    assert reason[144] == f"points to DE 3, which is unreadable ({reason[128]})"
+    with pytest.raises(SceneError) as info:
+        strict_check({str(path): r})
+    assert str(info.value) == (f"{path}: --strict: 2 entities not converted (1 x 128 unreadable parameter "
+                               f"data; 1 x 144 conversion failed); first: DE 3: {reason[128]}")
+
+
+def test_iges_cut_short_is_reported(tmp_path):
+    text = tiny_iges()
+    cut = text.index("P     13")  # inside line P 13: the 126 p-curve, and everything after it, are gone
+    r = load_iges(tiny_file(tmp_path, text[:cut - 30])).report
+    assert r["surfaces"] == 1 and r["notes"][0].startswith("the file ends inside line 29")
+    assert "no terminate section" in r["notes"][1]
+    assert groups(r) == {(144, "unreadable parameter data"): [9], (128, "orphan"): [3],
+                         (126, "unreadable parameter data"): [5], (142, "unreadable parameter data"): [7],
+                         (314, "unreadable parameter data"): [11]}
+    assert sum(sum(c.values()) for c in r["counts"].values()) == r["directory_entries"] == 6
+
+
+def test_iges_flipped_status_is_not_silent(tmp_path):
+    """A flipped bit that makes the independent surface subordinate leaves it an orphan, reported."""
+    path = tiny_file(tmp_path, replace_in_line(tiny_iges(), "D      1", "       000000000", "       000010000"))
+    r = load_iges(path).report
+    assert r["surfaces"] == 1 and groups(r) == {(128, "orphan"): [1]}
+
+
+def test_impeller_cut_in_half_reports_its_161_surfaces(tmp_path):
+    data = IMPELLER.read_bytes()
+    r = load_iges(tiny_file(tmp_path, data[:len(data) // 2], "half.igs")).report
+    assert r["surfaces"] == 277 - 161 and groups(r)[(144, "unreadable parameter data")][:2] == [4253, 4307]
+    assert len(groups(r)[(144, "unreadable parameter data")]) == 161 and r["text"]["line_endings"] == "CRLF"
+    assert sum(sum(c.values()) for c in r["counts"].values()) == r["directory_entries"] == 4615
+
+
+def test_cli_reports_iges_losses_on_stderr_in_stats_and_viewer(tmp_path, capsys):
+    """render and trace say what was lost (even with -q), --stats holds it, the Scene panel shows
+    it, --strict refuses the file in one line and leaves the outputs alone."""
+    import json
+
+    from psrt.cli import main
+    from viewer.surface_info import import_rows
+    path = tiny_file(tmp_path, replace_in_line(tiny_iges(), "P      9", "2.00", "nan "), "nan.igs")
+    png, stats, tr = tmp_path / "x.png", tmp_path / "s.json", tmp_path / "t.json"
+    want = [f"psrt render: warning: {path}: 2 IGES entities not converted (2 of them surfaces) "
+            f"(--strict makes this an error):",
+            "  1 x 128 (unreadable parameter data): DE 3; first: DE 3: P 9: 'nan' is not finite",
+            "  1 x 144 (conversion failed): DE 9; first: DE 9: points to DE 3, which is unreadable (P 9: 'nan'"]
+    assert main(["render", str(path), "-o", str(png), "--size", "8x8", "--stats", str(stats), "-q"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 3 and err[0] == want[0] and all(e.startswith(w) for e, w in zip(err[1:], want[1:])), err
+    imports = json.loads(stats.read_text())["imports"][str(path)]
+    assert imports["lost"] == 2 and imports["lost_surfaces"] == 2 and imports["surfaces"] == 1
+    assert [(g["type"], g["kind"], g["de"]) for g in imports["losses"]] == [
+        (128, "unreadable parameter data", [3]), (144, "conversion failed", [9])]
+    assert main(["trace", str(path), "--pixel", "4,4", "--size", "8x8", "-o", str(tr), "-q"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == want[0].replace("render", "trace") and len(err) == 3
+    rows = import_rows(load_scene(path).import_report[str(path)])
+    assert ("not converted", "2 entities, 2 of them surfaces") in rows
+    assert [t for label, t in rows if label == "lost"][1].startswith("1 x 144 (conversion failed): DE 9")
+    before = {p: p.read_bytes() for p in (png, stats, tr)}
+    for argv in (["render", str(path), "-o", str(png), "--stats", str(stats)],
+                 ["trace", str(path), "--pixel", "1,1", "-o", str(tr)]):
+        assert main(argv + ["--size", "8x8", "--strict"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith(f"psrt {argv[0]}: error: {path}: --strict: 2 entities")
+    assert {p: p.read_bytes() for p in before} == before

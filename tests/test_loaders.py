@@ -311,3 +311,35 @@ def test_mutations_raise_only_scene_errors(tmp_path):
             load_scene(path)
         except SceneError:
             pass
+
+
+def test_bpt_layouts_read_alike():
+    """A point a line, everything on one line, a number a line: the same patches (the contract
+    says whitespace separated)."""
+    rng = np.random.default_rng(5)
+    patches = []
+    for _ in range(30):
+        m, n = (int(d) for d in rng.integers(1, 4, 2))
+        pts = rng.normal(size=((m + 1) * (n + 1), 4)).round(6)
+        pts[:, 3] = rng.uniform(0.5, 2.0, len(pts)).round(6) if rng.random() < 0.4 else 1.0
+        patches.append((m, n, pts, bool((pts[:, 3] != 1).any())))
+    lines = [str(len(patches))]
+    for m, n, pts, rat in patches:
+        lines += [f"{m} {n}"] + [" ".join(repr(float(x)) for x in p[:4 if rat else 3]) for p in pts]
+    text = "\n".join(lines) + "\n"
+    want = parse_bpt(text, "lines.bpt")
+    assert [(p.degree_u, p.degree_v, p.rational) for p in want] == [(m, n, r) for m, n, _, r in patches]
+    for p, (_, _, pts, _) in zip(want, patches):
+        assert np.array_equal(p.points, pts)
+    words = text.split()
+    for layout in (" ".join(words), "\n".join(words), "\t".join(words) + "  # the end\n"):
+        got = parse_bpt(layout, "other.bpt")
+        assert len(got) == len(want)
+        assert all(np.array_equal(a.points, b.points) and a.rational == b.rational for a, b in zip(got, want))
+
+
+def test_bpt_run_together_points_can_be_ambiguous():
+    # all ones: 3 then 4 numbers a point read to the end just as well as 4 then 3
+    text = "2 1 1 " + "1 " * 30
+    with pytest.raises(SceneError, match=r"x.bpt:1: patch 1: cannot tell whether its control points have 3 or 4"):
+        parse_bpt(text, "x.bpt")

@@ -193,6 +193,16 @@ def _say(args, text):
         print(text, file=sys.stderr)
 
 
+def _import_losses(args, scene) -> None:
+    """What free-form imports did not convert, on stderr (--quiet too); --strict: an error."""
+    from .formats.losses import loss_lines, strict_check
+    if args.strict:
+        strict_check(scene.import_report)
+    for source, report in scene.import_report.items():
+        for i, line in enumerate(loss_lines(source, report)):
+            print(f"psrt {args.command}: warning: {line}" if i == 0 else line, file=sys.stderr)
+
+
 # ---- commands ---------------------------------------------------------------------
 
 def cmd_render(args) -> int:
@@ -207,6 +217,7 @@ def cmd_render(args) -> int:
     opts = options_from_args(args)
     with outs:  # every output replaces its file at the end, or none does
         scene = load_inputs(outs, args.scene)
+        _import_losses(args, scene)
         width, height = args.size or scene.image_size or (512, 512)
         needs_ref = bool(args.error_map or args.stats or any(CHANNELS[name].needs_reference for name in maps))
         memory.check_render(width, height, reference=needs_ref, limit=args.memory_limit)
@@ -228,10 +239,13 @@ def cmd_render(args) -> int:
             _write_png(outs, channel_image(name, frame, ref), path)
         fs = frame_stats(frame)
         if args.stats:
+            from .formats.losses import summary
             from .variants import compile_report
             _write_json(outs, {"scene": str(args.scene), "size": [width, height], "options": asdict(opts), **fs,
                                "reference_time": ref.seconds, "error": error_stats(frame, ref),
-                               "kernels": compile_report()}, args.stats)
+                               "kernels": compile_report(),
+                               "imports": {src: summary(r) for src, r in scene.import_report.items()}},
+                        args.stats)
     _say(args, f"{args.output}: {width}x{height}, {fs['hits']} hits of {fs['rays']} rays in "
                f"{fs['time']:.3f} s, mean effort {fs['effort']['mean']:.1f} box tests/ray")
     return 0
@@ -246,6 +260,7 @@ def cmd_trace(args) -> int:
     opts = options_from_args(args)
     with outs:
         scene = load_inputs(outs, args.scene)
+        _import_losses(args, scene)
         x, y = args.pixel
         tr = trace_pixel(scene, opts, x, y, size=args.size)
         _write_json(outs, tr.to_json(), output)
@@ -282,6 +297,12 @@ def _add_quiet(parser):
                         help="no progress bars or summary lines on stderr")
 
 
+def _add_strict(parser):
+    parser.add_argument("--strict", action="store_true",
+                        help="fail (exit 2) if an imported file (IGES) lost anything: entities not "
+                             "converted, or a file cut short")
+
+
 def _add_memory_limit(parser):
     parser.add_argument("--memory-limit", type=parse_memory, metavar="SIZE",
                         help=f"refuse a render estimated to need more memory than this, e.g. 8G or 512M "
@@ -307,6 +328,7 @@ def add_commands(sub) -> None:
     add_option_flags(p)
     _add_memory_limit(p)
     _add_quiet(p)
+    _add_strict(p)
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("trace", help="one pixel's subdivision trace as JSON (and a plot)")
@@ -317,6 +339,7 @@ def add_commands(sub) -> None:
     p.add_argument("--size", type=parse_size, help="image size WxH (default: the scene's, else 512x512)")
     add_option_flags(p)
     _add_quiet(p)
+    _add_strict(p)
     p.set_defaults(func=cmd_trace)
 
     p = sub.add_parser("bench", help="time and check every criterion x split x precision")

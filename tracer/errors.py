@@ -1,4 +1,4 @@
-"""Errors raised while loading scenes and patch files."""
+"""Errors raised while loading scenes and patch files (reading them: tracer.formats.source)."""
 
 
 class SceneError(ValueError):
@@ -31,14 +31,3 @@ class SceneError(ValueError):
         # keep path/line/key when the error crosses a process boundary
         return (SceneError, (self.message, self.path, self.line, self.key))
 
-
-def read_text(path) -> str:
-    """A source file's text (UTF-8, BOM tolerated); a missing or unreadable file is a SceneError."""
-    label = str(path)
-    try:
-        with open(path, encoding="utf-8-sig") as f:
-            return f.read()
-    except FileNotFoundError:
-        raise SceneError("file not found", path=label) from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise SceneError(f"cannot read file: {e}", path=label) from None

@@ -14,17 +14,22 @@ import dataclasses
 import json
 import math
 import os
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
-from tracer.errors import SceneError, read_text
-from tracer.formats.bpt import MAX_DEGREE, PatchData, load_bpt
+from tracer.errors import SceneError
+from tracer.formats.source import check_file, quote, read_text, shown
+from tracer.formats.bpt import MAX_DEGREE, PatchArrays, PatchData, load_bpt_arrays
+from tracer.formats.losses import has_losses, summary_line
 from tracer.formats.obj import load_obj
 from tracer.nurbs import FreeformModel, SurfaceInfo
 from tracer.trim import TrimSet, build_trimset
 
 MAX_IMAGE_SIZE = 16384
+MAX_TRANSFORM_CONDITION = 1e12  # a transform worse conditioned than this counts as singular
+JSON_INT_DIGITS = 400           # longer integers are no finite float64 (1.8e308 has 309 digits)
 DEFAULT_MATERIAL = "default"
 
 _TOP_KEYS = ("camera", "image", "objects", "materials", "lights")
@@ -154,17 +159,19 @@ def load_scene(path) -> Scene:
     ext = os.path.splitext(label)[1].lower()
     if ext in _FILE_TYPES:
         name = os.path.splitext(os.path.basename(label))[0]
-        obj = _Obj(name, label, DEFAULT_MATERIAL, [], np.eye(4))
+        obj = _Obj(name, label, DEFAULT_MATERIAL, None, np.eye(4))
         _read_file(obj, path, ext)
         return _assemble(label, [obj], [default_material()], [], None, None)
     if ext != ".json":
-        raise SceneError(f"unsupported scene file type '{ext}' (supported: .json, "
+        raise SceneError(f"unsupported scene file type {quote(ext)} (supported: .json, "
                          f"{', '.join(_FILE_TYPES)})", path=label)
     text = read_text(path)
     try:
-        data = json.loads(text, object_pairs_hook=_no_duplicates)
+        data = json.loads(text, object_pairs_hook=_no_duplicates, parse_int=_json_int)
     except SceneError as e:
         e.path = label
+        if e.line is None and (long := re.search("[0-9]{%d,}" % (JSON_INT_DIGITS + 1), text)):
+            e.line = text.count("\n", 0, long.start()) + 1
         raise
     except json.JSONDecodeError as e:
         raise SceneError(f"invalid JSON (column {e.colno}): {e.msg}",
@@ -191,7 +198,7 @@ class _Obj:
     name: str
     source: str
     material: str
-    patches: list[PatchData]
+    patches: PatchArrays | None
     transform: np.ndarray  # (4, 4)
     model: FreeformModel | None = None   # free-form files: surfaces, loops, report
     patch_surface: list[int] | None = None  # per patch: index into model.surfaces
@@ -201,7 +208,7 @@ class _Obj:
 def _read_file(o: _Obj, path, ext: str) -> None:
     """Fill o's patches from a .bpt, .obj or .igs/.iges file."""
     if ext == ".bpt":
-        o.patches = load_bpt(path)
+        o.patches = load_bpt_arrays(path)
         return
     if ext == ".obj":
         model = load_obj(path)
@@ -209,15 +216,19 @@ def _read_file(o: _Obj, path, ext: str) -> None:
         from tracer.formats.iges import load_iges  # needs pyiges; import only when used
         model = load_iges(path)
     if not model.surfaces:
-        raise SceneError("no free-form surfaces in the file", path=str(path))
-    o.model, o.patch_surface, o.patch_domain = model, [], []
+        lost = f": {summary_line(model.report)}" if has_losses(model.report) else ""
+        raise SceneError(f"no free-form surfaces in the file{lost}", path=str(path))
+    o.model, o.patch_surface, o.patch_domain, parts = model, [], [], []
     for si, fs in enumerate(model.surfaces):
         net = fs.surface.bezier_patches()
-        line = fs.info.entity.get("line", -1)
-        for pts, rat in zip(net.points, net.rational):
-            o.patches.append(PatchData(net.degree_u, net.degree_v, pts, rat, line))
-        o.patch_surface += [si] * len(net.points)
+        k = len(net.points)
+        parts.append(PatchArrays(np.concatenate(net.points), np.arange(k + 1) * len(net.points[0]),
+                                 np.full(k, net.degree_u), np.full(k, net.degree_v),
+                                 np.asarray(net.rational, bool),
+                                 np.full(k, fs.info.entity.get("line", -1))))
+        o.patch_surface += [si] * k
         o.patch_domain.append(net.domains)
+    o.patches = PatchArrays.join(parts)
 
 
 def _scene(data, label, base_dir) -> Scene:
@@ -234,8 +245,8 @@ def _scene(data, label, base_dir) -> Scene:
             materials.append(default_material())
             names.append(DEFAULT_MATERIAL)
         if o.material not in names:
-            raise SceneError(f"undefined material '{o.material}' "
-                             f"(defined: {', '.join(names) or 'none'})",
+            raise SceneError(f"undefined material {quote(o.material)} "
+                             f"(defined: {shown(', '.join(names)) or 'none'})",
                              key=f"objects[{i}].material")
     lights = [_light(spec, f"lights[{i}]")
               for i, spec in enumerate(_list(data.get("lights", []), "lights"))]
@@ -246,18 +257,19 @@ def _scene(data, label, base_dir) -> Scene:
 
 def _assemble(label, objs, materials, lights, camera, image) -> Scene:
     names = [m.name for m in materials]
-    pts, start, du, dv, rat, pobj, pmat, pline, objects = [], [0], [], [], [], [], [], [], []
+    parts, pobj, pmat, objects = [], [], [], []
     psurf, pdom, surfaces, loops, reports = [], [], [], [], {}
+    first_patch = 0
     for oi, o in enumerate(objs):
         mi = names.index(o.material)
-        objects.append(SceneObject(o.name, o.source, mi, len(du), len(o.patches)))
+        objects.append(SceneObject(o.name, o.source, mi, first_patch, len(o.patches)))
         if o.model is None:
             psurf.append(np.full(len(o.patches), -1, np.int32))
             pdom.append(np.tile([0.0, 1.0, 0.0, 1.0], (len(o.patches), 1)))
         else:
             first = np.searchsorted(o.patch_surface, np.arange(len(o.model.surfaces)))
             for si, fs in enumerate(o.model.surfaces):
-                info = dataclasses.replace(fs.info, object=oi, first_patch=len(du) + int(first[si]),
+                info = dataclasses.replace(fs.info, object=oi, first_patch=first_patch + int(first[si]),
                                            patch_count=len(o.patch_domain[si]))
                 surfaces.append(info)
                 loops.append(fs.loops)
@@ -266,18 +278,18 @@ def _assemble(label, objs, materials, lights, camera, image) -> Scene:
             pdom.append(np.concatenate(o.patch_domain))
             reports[o.source] = o.model.report
         lin, shift = o.transform[:3, :3], o.transform[:3, 3]
-        for p in o.patches:
-            xyz = p.points[:, :3] @ lin.T + shift  # transform the Euclidean point, keep w
-            pts.append(np.column_stack([xyz, p.points[:, 3]]))
-            start.append(start[-1] + len(p.points))
-            du.append(p.degree_u); dv.append(p.degree_v); rat.append(p.rational)
-            pobj.append(oi); pmat.append(mi); pline.append(p.line)
+        p = o.patches
+        xyz = p.points[:, :3] @ lin.T + shift  # transform the Euclidean points, keep w
+        parts.append(dataclasses.replace(p, points=np.column_stack([xyz, p.points[:, 3]])))
+        pobj.append(np.full(len(p), oi, np.int32))
+        pmat.append(np.full(len(p), mi, np.int32))
+        first_patch += len(p)
+    p = PatchArrays.join(parts)
     return Scene(
-        path=label, points=np.concatenate(pts).astype(np.float64),
-        point_start=np.array(start, np.int64),
-        degree_u=np.array(du, np.int32), degree_v=np.array(dv, np.int32),
-        rational=np.array(rat, bool), patch_object=np.array(pobj, np.int32),
-        patch_material=np.array(pmat, np.int32), patch_line=np.array(pline, np.int32),
+        path=label, points=p.points, point_start=p.start,
+        degree_u=p.degree_u, degree_v=p.degree_v,
+        rational=p.rational, patch_object=np.concatenate(pobj),
+        patch_material=np.concatenate(pmat), patch_line=p.line,
         objects=objects, materials=materials, lights=lights, camera=camera,
         image_size=image, patch_surface=np.concatenate(psurf).astype(np.int32),
         patch_domain=np.concatenate(pdom).astype(np.float64).reshape(-1, 4),
@@ -294,13 +306,11 @@ def _object(o, key, index, base_dir) -> _Obj:
         source = _str(o["file"], f"{key}.file")
         ext = os.path.splitext(source)[1].lower()
         if ext not in _FILE_TYPES:
-            raise SceneError(f"unsupported file type '{ext}' (supported: "
+            raise SceneError(f"unsupported file type {quote(ext)} (supported: "
                              f"{', '.join(_FILE_TYPES)})", key=f"{key}.file")
         resolved = os.path.normpath(os.path.join(base_dir, source))
-        if not os.path.isfile(resolved):
-            problem = "not a file" if os.path.exists(resolved) else "file not found"
-            raise SceneError(f"{problem}: {resolved}", key=f"{key}.file")
-        loaded = _Obj("", source, material, [], transform)
+        check_file(resolved, key=f"{key}.file")
+        loaded = _Obj("", source, material, None, transform)
         _read_file(loaded, resolved, ext)
         name = os.path.splitext(os.path.basename(source))[0]
     else:
@@ -315,7 +325,7 @@ def _object(o, key, index, base_dir) -> _Obj:
     if loaded is not None:
         loaded.name = name
         return loaded
-    return _Obj(name, source, material, patches, transform)
+    return _Obj(name, source, material, PatchArrays.of(patches), transform)
 
 
 def _inline_patch(p, key) -> PatchData:
@@ -389,11 +399,21 @@ def _camera(c) -> Camera:
     cam = Camera(*(_numbers(c[k], 3, f"camera.{k}") for k in _CAMERA_KEYS[:3]),
                  fov_deg=_number(c["fov_deg"], "camera.fov_deg", lo=0.0, hi=180.0,
                                  open_lo=True, open_hi=True))
-    view = cam.look_at - cam.eye
+    with np.errstate(over="ignore"):
+        view = cam.look_at - cam.eye
     if not np.any(view):
         raise SceneError("eye and look_at coincide", key="camera")
+    if not np.all(np.isfinite(view)):
+        raise SceneError("eye and look_at are too far apart (their difference overflows)",
+                         key="camera")
     if not np.any(np.cross(view, cam.up)):
         raise SceneError("up is zero or parallel to the view direction", key="camera.up")
+    from tracer.camera import View  # the renderer's own test, so a camera loaded is one it takes
+    try:
+        View(tuple(cam.eye), tuple(cam.look_at), tuple(cam.up), cam.fov_deg).basis()
+    except ValueError as e:
+        why = str(e).removeprefix("camera: ")
+        raise SceneError(why, key="camera.up" if "up " in why else "camera") from None
     return cam
 
 
@@ -413,12 +433,15 @@ def _transform(t, key) -> np.ndarray:
     m = np.array(_numbers(t, 16, key, what="16 finite numbers (row-major 4x4)")).reshape(4, 4)
     if not np.array_equal(m[3], [0.0, 0.0, 0.0, 1.0]):
         raise SceneError(f"not affine: last row must be 0 0 0 1, got {_show(t[12:])}", key=key)
+    # the condition number of the 3x3 part, scaled to entries <= 1 first: a uniform scale
+    # (even 1e300, whose determinant overflows) is fine, a rank-deficient matrix is not
     lin = m[:3, :3]
-    # relative to Hadamard's bound, so scale does not matter and LU rounding of an
-    # exactly singular matrix (det ~1e-16) still counts as singular
-    bound = np.prod(np.linalg.norm(lin, axis=1))
-    if not abs(np.linalg.det(lin)) > 1e-12 * bound:
-        raise SceneError("singular transform (the 3x3 part has zero determinant)", key=key)
+    big = np.abs(lin).max()
+    cond = np.linalg.cond(lin / big) if big > 0 else math.inf
+    if not cond <= MAX_TRANSFORM_CONDITION:
+        raise SceneError(f"singular transform: the 3x3 part is not safely invertible "
+                         f"(condition number {cond:.3g}, limit {MAX_TRANSFORM_CONDITION:g})",
+                         key=key)
     return m
 
 
@@ -428,7 +451,7 @@ def _no_duplicates(pairs):
     d = {}
     for k, v in pairs:
         if k in d:
-            raise SceneError(f"duplicate key '{k}' in a JSON object")
+            raise SceneError(f"duplicate key {quote(k)} in a JSON object")
         d[k] = v
     return d
 
@@ -473,10 +496,18 @@ def _keys(d, allowed, key, required=()):
     for k in d:
         if k not in allowed:
             raise SceneError(f"unknown key (expected one of: {', '.join(allowed)})",
-                             key=prefix + k)
+                             key=prefix + shown(k))
     for k in required:
         if k not in d:
             raise SceneError(f"missing required key '{k}'", key=key or None)
+
+
+def _json_int(text: str) -> int:
+    """JSON integers as int, but none longer than any finite number (int() has a digit limit)."""
+    digits = len(text.lstrip("-"))
+    if digits > JSON_INT_DIGITS:
+        raise SceneError(f"a number of {digits:,} digits: too long (at most {JSON_INT_DIGITS})")
+    return int(text)
 
 
 def _is_int(v) -> bool:

@@ -9,6 +9,7 @@ from collections import Counter
 
 import numpy as np
 
+from tracer.formats.losses import group_line
 from tracer.trim import inside, loops_for_plot
 
 LOOP_SAMPLES = 24  # points per curved trim segment in the parameter-space plot
@@ -78,7 +79,12 @@ def import_rows(report: dict) -> list:
             first = report["failed"][0]
             rows.append(("failed", (f"{len(report['failed'])}, e.g. DE {first['de']} (type {first['type']}): "
                                     f"{first['reason']}")))
-        for bucket in ("not_rendered", "non_geometry", "orphan", "unparsed"):
+        if report.get("lost") or report.get("notes"):
+            rows.append(("not converted", f"{report.get('lost', 0)} entities, "
+                                          f"{report.get('lost_surfaces', 0)} of them surfaces"))
+            rows += [("damage", note) for note in report.get("notes", [])]
+            rows += [("lost", group_line(g)) for g in report.get("losses", [])]
+        for bucket in ("not_rendered", "non_geometry", "orphan"):
             if counts.get(bucket):
                 rows.append((bucket.replace("_", " "), _by_type(counts[bucket])))
         if report.get("trim_widest_gap_rel"):
@@ -88,6 +94,10 @@ def import_rows(report: dict) -> list:
             dev = (f"{report['boundary_deviation_max']:.3g} {report.get('units') or ''} widest, face edge vs "
                    f"model curve (DE {report.get('boundary_deviation_de')})")
             rows.append(("edge deviation", dev))
+        text = report.get("text") or {}
+        if text.get("non_ascii_bytes"):
+            rows.append(("non-ASCII", f"{text['non_ascii_bytes']} bytes read as '?' (first on line "
+                                      f"{text.get('non_ascii_first_line')})"))
         if report.get("time_s") is not None:
             rows.append(("import time", f"{report['time_s']:g} s"))
         return rows

@@ -1,8 +1,8 @@
-"""IGES import through pyiges: NURBS (128), surfaces of revolution (120), trimmed surfaces (144).
+"""IGES import: NURBS (128), surfaces of revolution (120), trimmed surfaces (144).
 
-pyiges reads the directory and parameter sections and types the entities;
-we read the global section (modelling tolerance, units) and the few fields
-pyiges drops (the parameter range of a 128) from the file ourselves.
+tracer.formats.iges_sections reads the file as fixed-column ASCII (any line endings, stray
+non-ASCII bytes) into directory entries and parameter records, pyiges' entity classes
+decode the parameters of the types they know, and this module converts them.
 
 Conversions, all exact unless said otherwise:
 - 128 rational B-spline surface -> NurbsSurface on its [U0, U1] x [V0, V1].
@@ -19,14 +19,16 @@ Conversions, all exact unless said otherwise:
 - 124 transformation matrices (chained) are applied to model-space geometry.
 
 Every directory entry ends in one bucket of report['counts'] (converted,
-consumed, failed, unsupported, not_rendered, non_geometry, orphan), so nothing
-is dropped silently; report['unsupported'] counts by type what could not be
-turned into surfaces.
+consumed, failed, unsupported, unreadable, not_rendered, non_geometry, orphan), so
+nothing is dropped silently; report['unsupported'] counts by type what could not be
+turned into surfaces, and report['losses'] (tracer.formats.losses) groups every
+entity that could have become a surface and did not (failed, unsupported,
+unreadable, orphaned) by type and kind, with directory-entry numbers and a reason;
+report['notes'] says when the file itself is cut short or inconsistent.
 """
 from __future__ import annotations
 
 import contextlib
-import io
 import math
 import time
 from collections import Counter, defaultdict
@@ -34,6 +36,8 @@ from collections import Counter, defaultdict
 import numpy as np
 
 from tracer.errors import SceneError
+from tracer.formats.iges_sections import read_iges
+from tracer.formats.losses import group_losses
 from tracer.nurbs import (CircleParam, FreeformModel, FreeformSurface, NurbsCurve, NurbsError,
                           NurbsSurface, SurfaceInfo, circle_arc, revolve)
 from tracer.trim import TrimError, curve_segments, make_loop, remap_segments
@@ -61,89 +65,17 @@ def load_iges(path, measure_gaps: bool = False) -> FreeformModel:
     label = str(path)
     t_start = time.perf_counter()
     try:
-        import pyiges
+        import pyiges  # noqa: F401  (its entity classes decode the parameters)
     except ImportError:
         raise SceneError("reading IGES needs the pyiges package (pip install pyiges)",
                          path=label) from None
-    try:
-        with open(path, encoding="latin-1") as f:
-            lines = f.read().splitlines()
-    except FileNotFoundError:
-        raise SceneError("file not found", path=label) from None
-    except OSError as e:
-        raise SceneError(f"cannot read file: {e}", path=label) from None
-    sections = defaultdict(list)
-    for no, line in enumerate(lines, start=1):
-        if len(line) >= 73 and line[72] in "SGDPT":
-            sections[line[72]].append((no, line))
-        elif line.strip():
-            raise SceneError("not an IGES line (expected 80 columns with S, G, D, P or T "
-                             "in column 73)", path=label, line=no)
-    if not sections["D"]:
-        raise SceneError("no directory entries: not an IGES file", path=label)
-    glob = _global_section("".join(l[:72] for _, l in sections["G"]))
-    delim = glob.get(1) or ","
-    raw = defaultdict(str)
-    for _, line in sections["P"]:
-        try:
-            raw[int(line[64:72])] += line[:64]
-        except ValueError:
-            pass
-    try:
-        log = io.StringIO()
-        with contextlib.redirect_stdout(log):
-            doc = pyiges.read(label)
-    except Exception as e:  # pyiges raises whatever its parsing hits
-        raise SceneError(f"pyiges cannot parse the file: {type(e).__name__}: {e}",
-                         path=label) from None
-    conv = _Converter(doc, raw, delim, glob, label)
+    f = read_iges(path)
+    conv = _Converter(f.entities.values(), f.glob, label, f.unreadable)
     conv.measure = measure_gaps
-    model = conv.run([int(l[73:80]) for i, (_, l) in enumerate(sections["D"]) if i % 2 == 0],
-                     log.getvalue())
+    model = conv.run(f.de_numbers)
+    model.report.update(notes=f.notes, text=f.text)
     model.report["time_s"] = round(time.perf_counter() - t_start, 3)
     return model
-
-
-def _global_section(text: str) -> dict:
-    """Global parameters by 1-based index; strings (Hollerith nH...) decoded, numbers as float."""
-    delim, end = ",", ";"
-    if text.startswith("1H"):
-        delim = text[2]
-    elif text[:1] not in (",", ""):
-        return {}
-    out, i, idx = {}, 0, 1
-    # the first two fields name the delimiters themselves
-    while i < len(text) and idx < 40:
-        j = i
-        while j < len(text) and text[j] == " ":
-            j += 1
-        k = j
-        while k < len(text) and text[k].isdigit():
-            k += 1
-        if k > j and k < len(text) and text[k] == "H":
-            n = int(text[j:k])
-            value = text[k + 1:k + 1 + n]
-            i = k + 1 + n
-        else:
-            stop = i
-            while stop < len(text) and text[stop] not in (delim, end):
-                stop += 1
-            value = text[i:stop].strip()
-            i = stop
-            if value:
-                try:
-                    value = float(value.replace("D", "E").replace("d", "e"))
-                except ValueError:
-                    pass
-        if idx == 2 and isinstance(value, str) and value:
-            end = value
-        if value != "":
-            out[idx] = value
-        if i >= len(text) or text[i] == end:
-            break
-        i += 1  # skip the delimiter
-        idx += 1
-    return out
 
 
 def _status(e) -> tuple[int, int, int, int]:
@@ -153,9 +85,10 @@ def _status(e) -> tuple[int, int, int, int]:
 
 
 class _Converter:
-    def __init__(self, doc, raw, delim, glob, label):
-        self.ents = {e.sequence_number: e for e in doc}
-        self.raw, self.delim, self.glob, self.label = raw, delim, glob, label
+    def __init__(self, entities, glob, label, unreadable=None):
+        self.ents = {e.sequence_number: e for e in entities}
+        self.glob, self.label = glob, label
+        self.unreadable = unreadable or {}  # DE -> (type, kind, reason)
         self.used: set[int] = set()
         self.approximated = 0
         self.gaps: list[float] = []
@@ -168,7 +101,10 @@ class _Converter:
     def ent(self, seq, expect=None):
         e = self.ents.get(int(seq))
         if e is None:
-            raise _Unconvertible(f"pointer to DE {seq}, which pyiges did not read")
+            if int(seq) in self.unreadable:
+                raise _Unconvertible(f"points to DE {seq}, which is unreadable "
+                                     f"({self.unreadable[int(seq)][2]})")
+            raise _Unconvertible(f"points to DE {seq}, which does not exist")
         t = e.d["entity_type_number"]
         if expect is not None and t not in expect:
             raise _Unconvertible(f"DE {seq} is type {t}, expected {'/'.join(map(str, expect))}")
@@ -178,8 +114,7 @@ class _Converter:
     def params(self, e) -> list[str]:
         if e.parameters and isinstance(e.parameters[0], list):
             return e.parameters[0]
-        text = self.raw.get(e.sequence_number, "").strip()
-        return text.rstrip(";").split(self.delim)
+        raise _Unconvertible(f"DE {e.sequence_number} has no parameter list")
 
     def matrix(self, e, depth=0) -> np.ndarray:
         """4x4 of the entity's DE transform (chained 124s), identity if none."""
@@ -284,7 +219,7 @@ class _Converter:
 
     def _bspline_surface(self, e) -> NurbsSurface:
         k1, k2, m1, m2 = e._k1, e._k2, e._m1, e._m2
-        p = self.raw.get(e.sequence_number, "").strip().rstrip(";").split(self.delim)
+        p = self.params(e)
         at = 14 + k1 + m1 + k2 + m2 + 4 * (k1 + 1) * (k2 + 1)
         try:
             dom = [_float(x) for x in p[at:at + 4]]
@@ -370,7 +305,7 @@ class _Converter:
 
     # ---- driver --------------------------------------------------------------------
 
-    def run(self, de_numbers, pyiges_log) -> FreeformModel:
+    def run(self, de_numbers) -> FreeformModel:
         surfaces, failed, converted = [], [], set()
         order = sorted(self.ents)
         attempts = [s for s in order if self.ents[s].d["entity_type_number"] == 144
@@ -402,10 +337,14 @@ class _Converter:
                                "reason": str(err) or type(err).__name__})
         failed_de = {f["de"] for f in failed}
         counts: dict[str, Counter] = defaultdict(Counter)
+        lost = [{"de": f["de"], "type": f["type"], "kind": "conversion failed",
+                 "reason": f["reason"]} for f in failed]
         for seq in de_numbers:
             e = self.ents.get(seq)
             if e is None:
-                counts["unparsed"]["?"] += 1
+                t, kind, reason = self.unreadable[seq]
+                counts["unreadable"][t if t is not None else "?"] += 1
+                lost.append({"de": seq, "type": t, "kind": kind, "reason": reason})
                 continue
             t = e.d["entity_type_number"]
             sub = _status(e)[1]
@@ -417,8 +356,14 @@ class _Converter:
                 bucket = "consumed"
             elif sub != 0:
                 bucket = "orphan"
+                if t in SURFACE_TYPES:  # a surface only its parent would have drawn
+                    lost.append({"de": seq, "type": t, "kind": "orphan",
+                                 "reason": "a subordinate surface whose parent was not "
+                                           "converted"})
             elif t in SURFACE_TYPES:
                 bucket = "unsupported"
+                lost.append({"de": seq, "type": t, "kind": "unsupported entity type",
+                             "reason": f"type {t} is not converted (128, 120, 144 are)"})
             elif t in CURVE_TYPES or 200 <= t < 300 or t == 116:
                 bucket = "not_rendered"
             else:
@@ -441,6 +386,9 @@ class _Converter:
                        for b, c in sorted(counts.items())},
             "unsupported": dict(sorted(unsupported.items())),
             "failed": failed,
+            "losses": group_losses(lost, SURFACE_TYPES),
+            "lost": len(lost),
+            "lost_surfaces": sum(1 for x in lost if x["type"] in SURFACE_TYPES),
             "surfaces": len(surfaces),
             "trimmed": sum(1 for s in surfaces if s.loops),
             "outer_loop_is_domain": self.domain_outer,
@@ -448,7 +396,6 @@ class _Converter:
             "trim_approx_tol_rel": REMAP_TOL,
             "trim_widest_gap_rel": max(self.gaps, default=(0.0, None))[0],
             "trim_widest_gap_de": max(self.gaps, default=(0.0, None))[1],
-            "pyiges_warnings": [l for l in pyiges_log.splitlines() if l.strip()],
         }
         if self.measure:
             worst = max(self.deviations, default=(0.0, None))

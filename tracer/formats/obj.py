@@ -22,7 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from tracer.errors import SceneError, read_text
+from tracer.errors import SceneError
+from tracer.formats.source import (INTEGER, not_a_number, parse_int, parse_number, quote, read_text,
+                                   shown, split_lines, split_words)
 from tracer.nurbs import (MAX_DEGREE, FreeformModel, FreeformSurface, NurbsCurve, NurbsError,
                           NurbsSurface, SurfaceInfo, bezier_knots)
 from tracer.trim import TrimError, curve_segments, make_loop
@@ -59,7 +61,7 @@ def load_obj(path) -> FreeformModel:
 def _statements(text):
     """(line number, tokens) per statement: comments stripped, backslash continuations joined."""
     pending, start = [], 0
-    for no, raw in enumerate(text.splitlines(), start=1):
+    for no, raw in enumerate(split_lines(text), start=1):
         body = raw.split("#", 1)[0].rstrip()
         if not pending:
             start = no
@@ -67,12 +69,12 @@ def _statements(text):
             pending.append(body[:-1])
             continue
         pending.append(body)
-        toks = " ".join(pending).split()
+        toks = split_words(" ".join(pending))
         pending = []
         if toks:
             yield start, toks
     if pending:
-        toks = " ".join(pending).split()
+        toks = split_words(" ".join(pending))
         if toks:
             yield start, toks
 
@@ -88,20 +90,17 @@ def parse_obj(text: str, path_label: str) -> FreeformModel:
             fail(f"{what}: expected {want} numbers, got {len(toks)}", line)
         vals = []
         for t in toks:
-            try:
-                x = float(t)
-            except ValueError:
-                fail(f"{what}: {t!r} is not a number", line)
-            if not math.isfinite(x):
-                fail(f"{what}: {t!r} is not finite", line)
+            x = parse_number(t)
+            if x is None:
+                fail(f"{what}: {not_a_number(t)}", line)
             vals.append(x)
         return vals
 
     def index(tok, count, what, line):
-        try:
-            i = int(tok)
-        except ValueError:
-            fail(f"{what}: {tok!r} is not an integer index", line)
+        i = parse_int(tok)
+        if i is None:
+            fail(f"{what}: {quote(tok)} is not an integer index"
+                 + (" (too many digits)" if INTEGER.match(tok) else ""), line)
         if i == 0:
             fail(f"{what}: index 0 is invalid (indices start at 1, negative count back)", line)
         if i < 0:
@@ -121,13 +120,13 @@ def parse_obj(text: str, path_label: str) -> FreeformModel:
         if kw == "v":
             x = numbers(args, 3, 4, "v", line)
             if len(x) == 4 and x[3] <= 0:
-                fail(f"v: weight must be > 0, got {args[3]}", line)
+                fail(f"v: weight must be > 0, got {shown(args[3])}", line)
             verts.append(x + [1.0] * (4 - len(x)))
             vert_lines.append(line)
         elif kw == "vp":
             x = numbers(args, 1, 3, "vp", line)
             if len(x) == 3 and x[2] <= 0:
-                fail(f"vp: weight must be > 0, got {args[2]}", line)
+                fail(f"vp: weight must be > 0, got {shown(args[2])}", line)
             vps.append(x + [math.nan, 1.0][len(x) - 1:])  # v missing -> nan, w -> 1
             vp_lines.append(line)
         elif kw == "cstype":
@@ -139,16 +138,17 @@ def parse_obj(text: str, path_label: str) -> FreeformModel:
                 fail(f"cstype {rest[0]} is not supported (supported: bezier, bspline, "
                      f"rat bezier, rat bspline)", line)
             if rest[0] not in ("bezier", "bspline"):
-                fail(f"cstype: unknown type {rest[0]!r} (expected bezier or bspline)", line)
+                fail(f"cstype: unknown type {quote(rest[0])} (expected bezier or bspline)", line)
             cstype = (rat, rest[0])
         elif kw == "deg":
             if len(args) not in (1, 2):
                 fail(f"deg: expected 1 or 2 integers, got {len(args)}", line)
             d = []
             for a in args:
-                if not a.lstrip("+").isdigit() or not 1 <= int(a) <= MAX_DEGREE:
-                    fail(f"deg: {a!r} is not a degree in 1..{MAX_DEGREE}", line)
-                d.append(int(a))
+                k = parse_int(a)
+                if k is None or not 1 <= k <= MAX_DEGREE:
+                    fail(f"deg: {quote(a)} is not a degree in 1..{MAX_DEGREE}", line)
+                d.append(k)
             deg = tuple(d)
         elif kw in ("surf", "curv2"):
             if cur is not None:
@@ -165,10 +165,10 @@ def parse_obj(text: str, path_label: str) -> FreeformModel:
                 srange = tuple(numbers(args[:4], 4, 4, "surf", line))
                 refs = [index(r.split("/")[0], len(verts), "surf", line) for r in args[4:]]
                 for r in args[4:]:
-                    if any(p and not p.lstrip("+-").isdigit() for p in r.split("/")[1:]) \
+                    if any(p and parse_int(p) is None for p in r.split("/")[1:]) \
                             or r.count("/") > 2:
-                        fail(f"surf: bad reference {r!r} (expected v, v/vt, v/vt/vn or v//vn)",
-                             line)
+                        fail(f"surf: bad reference {quote(r)} (expected v, v/vt, v/vt/vn or "
+                             f"v//vn)", line)
                 cur = _Element("surf", line, cstype[0], cstype[1], deg, refs,
                                names["o"] or names["g"], srange)
             else:
@@ -212,7 +212,7 @@ def parse_obj(text: str, path_label: str) -> FreeformModel:
             fail(f"'{kw}' is not supported (free-form statements read: v, vp, cstype, deg, "
                  f"surf, curv2, parm, trim, hole, end)", line)
         else:
-            fail(f"unknown statement {kw!r}", line)
+            fail(f"unknown statement {quote(kw)}", line)
     if cur is not None:
         fail(f"{cur.kind} at line {cur.line} has no 'end'", cur.line)
 
