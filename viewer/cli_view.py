@@ -54,8 +54,9 @@ def add_view_command(subparsers) -> argparse.ArgumentParser:
 
 def add_script_flags(p) -> None:
     p.add_argument("--at", action="append", default=[], metavar="WHEN:OPTION=VALUE",
-                   help="change an option at UI frame WHEN, or WHEN=mid-render: while full tiles arrive, "
-                        "or WHEN=after-render: once the frame is traced")
+                   help="change an option at UI frame WHEN, or WHEN=mid-render: once the first full-resolution "
+                        "tile has arrived (the render waits there for it), or WHEN=after-render: once the frame "
+                        "is traced")
     p.add_argument("--click", type=_click, metavar="X,Y", help="click image pixel X,Y once the render is done")
     p.add_argument("--load", metavar="FILE", help="open FILE in the running viewer after the first render")
     p.add_argument("--frames", type=int, metavar="N", help="stop after at most N UI frames")

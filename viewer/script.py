@@ -72,6 +72,7 @@ class Script:
     _click_done: int = -1  # the frame the click reached the inspector
     _loaded_at: int | None = None
     _started: float = 0.0
+    _hold = None  # the worker's mid-render hold, set once mid-render changes are made
 
     def start(self, viewer) -> None:
         st = viewer.state
@@ -79,6 +80,8 @@ class Script:
         for text in self.sets:
             st.opts, st.settings = assign(st.opts, st.settings, text)
         self._pending_at = list(self.at)
+        if any(when == MID_RENDER for when, _ in self.at):
+            self._hold = viewer.worker.hold_mid_render()
 
     # --- per frame ------------------------------------------------------------------------
     def _apply_due(self, viewer) -> None:
@@ -97,6 +100,8 @@ class Script:
                     st.log(str(e), "error")
                 self.applied.append({"frame": st.frame_count, "set": text, "phase": r.phase,
                                      "tiles_done": r.tiles_done, "tiles_total": r.tiles_total})
+        if self._hold is not None and not any(when == MID_RENDER for when, _ in self._pending_at):
+            self._hold.set()  # the render that was held after its first tile goes on
 
     def inject(self, viewer) -> None:
         """Called after the backends' new frame and before ImGui's: actions and mouse input."""
