@@ -7,6 +7,7 @@ window has drawn frames showing it), so no test depends on how fast the machine 
 """
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -159,6 +160,20 @@ def test_the_window_shows_the_compile_and_then_the_image(xvfb, warm_kernels, tmp
     note = window[8:40, 8:300].astype(int)  # the notes window at the image's top-left corner
     warm = (note[..., 0] > 180) & (note[..., 1] > 140) & (note[..., 2] < 120)  # its amber text
     assert warm.sum() > 50, "no compiling note over the image in the window grabbed mid-compile"
+
+
+def test_the_window_draws_while_the_inspector_compiles(xvfb, warm_kernels, tmp_path, teapot):
+    """A click's first trace compiles the step-recording kernels: on its own thread, the window
+    drawing HOLD_FRAMES frames saying so meanwhile; then the dump is the headless trace."""
+    from tracer.options import Options
+    from tracer.trace_one import trace_pixel
+    dump = tmp_path / "trace.json"
+    code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--click", "64,72", "--dump-inspector", dump],
+                                 tmp_path, hooks="hold-trace")
+    assert code == 0, err
+    got, want = json.loads(dump.read_text()), trace_pixel(teapot, Options(), 64, 72, size=(128, 128))
+    assert got["hit"] and got["patch"] == want.patch and len(got["steps"]) == len(want.events)
+    assert any("pixel 64,72: hit patch" in m["text"] for m in status["messages"])
 
 
 @pytest.mark.skipif(not os.environ.get("PSRT_COLD_COMPILE_TEST"),

@@ -12,7 +12,9 @@ the machine is:
   is pressed (mouse events through ImGui, like a real click);
 - hold-compile: a kernel compile takes until the window has drawn HOLD_FRAMES frames showing
   "compiling ...", for at least HOLD_SECONDS, doing Python work all along (as numba's compiler
-  does, holding the GIL in turns); the window is grabbed to $PSRT_HOOK_SHOT meanwhile.
+  does, holding the GIL in turns); the window is grabbed to $PSRT_HOOK_SHOT meanwhile;
+- hold-trace: the inspector's first (compiling) trace takes until the window has drawn
+  HOLD_FRAMES frames showing "tracing pixel X,Y (compiling ...)", the same way.
 
 The load hooks apply to the file named by $PSRT_HOOK_FILE (a base name), or to every load.
 If the window stopped drawing while it waits, the hold never ends and the run's --timeout
@@ -30,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 HOLD_FRAMES = 30
 HOLD_SECONDS = 2.0
 
-_frames = {"loading": 0, "compiling": 0}
+_frames = {"loading": 0, "compiling": 0, "tracing": 0}
 _hooks = set()
 _press = {"stage": 0, "pos": None}
 _shot = {"taken": False}
@@ -42,6 +44,8 @@ def _count_frame(viewer) -> None:
         _frames["loading"] += 1
     if st.compiling is not None and any(n.startswith("compiling ") for n in st.notes):
         _frames["compiling"] += 1
+    if st.inspecting is not None and any(n.startswith("tracing pixel") and "(compiling" in n for n in st.notes):
+        _frames["tracing"] += 1
     if "announce-render" in _hooks and not _shot.get("announced"):
         r = st.render
         if r.phase == "full" and r.tiles_done >= 1:
@@ -158,6 +162,17 @@ def install(hooks) -> None:
         return kernel
 
     tracer.render.compiled = held_compiled
+
+    import tracer.trace_one
+    trace_compiled = tracer.trace_one.compiled
+
+    def held_trace_compiled(kind, variant, args, on_compile=None):
+        from tracer.variants import COMPILED
+        if "hold-trace" in _hooks and (kind, variant) not in COMPILED:
+            _wait_frames("tracing", HOLD_SECONDS, busy=True)
+        return trace_compiled(kind, variant, args, on_compile)
+
+    tracer.trace_one.compiled = held_trace_compiled
 
 
 def main(argv) -> int:

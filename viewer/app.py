@@ -194,7 +194,7 @@ class Viewer:
     # --- one frame ------------------------------------------------------------------------
     def frame(self, script=None) -> None:
         st = self.state
-        waiting = bool(st.loading or st.compiling)  # their notes count seconds
+        waiting = bool(st.loading or st.compiling or st.inspecting)  # their notes count seconds
         if script is None and st.render.phase in ("idle", "done", "error", "cancelled") and not waiting \
                 and self.worker.events.empty() and time.perf_counter() > self.awake_until:
             start = time.perf_counter()

@@ -141,6 +141,8 @@ class Script:
                 self._click_stage = 1
             elif self._click_stage >= 1:
                 io.add_mouse_pos_event(*self._click_pos)  # the glfw backend overwrites it each frame
+                if self._click_stage == 4 and viewer.interaction.pending is not None:
+                    return  # the pixel is being traced (its first trace compiles the kernels)
                 if self._click_stage in (2, 3):
                     io.add_mouse_button_event(0, self._click_stage == 2)
                 if self._click_stage == 4:

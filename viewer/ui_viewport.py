@@ -1,4 +1,5 @@
-"""Status drawn over the image: a load in flight (with Cancel), a kernel compiling, the latest error.
+"""Status drawn over the image: a load in flight (with Cancel), a kernel compiling, a pixel being
+traced for the inspector, the latest error.
 
 These are what a user waits on before the first image, so they sit on the image itself, not
 only in a panel. The lines drawn each frame are kept in state.notes (scripted runs record them).
@@ -16,7 +17,7 @@ _PASSIVE = (imgui.WindowFlags_.no_decoration | imgui.WindowFlags_.no_focus_on_ap
 
 
 def viewport_notes(state, now: float | None = None) -> list:
-    """The status lines for the image: loading NAME... N s, compiling VARIANT... N s."""
+    """The status lines for the image: loading NAME... N s, compiling VARIANT... N s, tracing pixel X,Y... N s."""
     now = time.perf_counter() if now is None else now
     notes = []
     if state.loading is not None:
@@ -25,6 +26,10 @@ def viewport_notes(state, now: float | None = None) -> list:
     if state.compiling is not None:
         variant, since = state.compiling
         notes.append(f"compiling {variant}... {now - since:.0f} s")
+    if state.inspecting is not None:
+        (px, py), since, compiling = state.inspecting
+        also = f" (compiling {', '.join(compiling)})" if compiling else ""
+        notes.append(f"tracing pixel {px},{py}{also}... {now - since:.0f} s")
     return notes
 
 
