@@ -180,7 +180,7 @@ def main(argv) -> int:
     assert sep == "--", "usage: view_hooks.py HOOK[,HOOK] -- VIEW ARGS"
     install(h for h in hooks.split(",") if h)
     from viewer.cli_view import main as view_main
-    return view_main(args)
+    return view_main(args, end_process=True)  # as `psrt view` does
 
 
 if __name__ == "__main__":

@@ -5,12 +5,11 @@ events -> draw the view (image, overlay, outlines) -> blit it -> ImGui on top ->
 Nothing raised inside a frame closes the window: it is logged and shown in the UI. Scene
 files load off the UI thread (viewer.loader), so the window keeps drawing whatever a load does.
 Ctrl-C (or SIGTERM) closes the window at the end of the frame; a tile still being traced
-cannot be interrupted, so the command line ends the process without waiting for it.
+cannot be interrupted, so the command line (cli_view) ends the process without waiting for it.
 """
 from __future__ import annotations
 
 import ctypes
-import os
 import signal
 import sys
 import threading
@@ -48,7 +47,7 @@ TARGET_FPS = 60.0
 BUSY_FPS = 36.0  # while tiles are traced: above the 30 frames/s promised, leaving CPU to the tracer
 IDLE_WAIT = 0.1
 AWAKE_AFTER_INPUT = 0.5
-STOP_WAIT = 0.1  # seconds closing waits for a tile in flight before leaving it (hard_exit)
+STOP_WAIT = 0.1  # seconds closing waits for a tile in flight before leaving it running
 EXIT_INTERRUPTED = 130
 
 
@@ -252,9 +251,9 @@ class Viewer:
     def should_close(self) -> bool:
         return self.closed or glfw.window_should_close(self.window)
 
-    def close(self) -> bool:
-        """Stop the worker and close the window; False if the worker was still busy."""
-        stopped = self.worker.stop(STOP_WAIT)
+    def close(self) -> None:
+        """Stop the worker (a tile in flight is left running) and close the window."""
+        self.worker.stop(STOP_WAIT)
         if self.persist:
             save_persistent(self.state)
         imgui.backends.opengl3_shutdown()
@@ -263,20 +262,17 @@ class Viewer:
         imgui.destroy_context()
         glfw.destroy_window(self.window)
         glfw.terminate()
-        return stopped
 
 
-def _catch_interrupts(viewer, hard_exit: bool) -> dict:
-    """Ctrl-C and SIGTERM close the window at the end of the frame; a second Ctrl-C ends the
-    process at once (hard_exit) or raises KeyboardInterrupt. Returns the handlers to restore.
-    Signals can be caught only on the main thread."""
+def _catch_interrupts(viewer) -> dict:
+    """Ctrl-C and SIGTERM close the window at the end of the frame (a second Ctrl-C raises
+    KeyboardInterrupt); returns the handlers to restore. Signals can be caught only on the
+    main thread."""
     if threading.current_thread() is not threading.main_thread():
         return {}
 
     def close(signum, _frame):
         if viewer.interrupted and signum == signal.SIGINT:
-            if hard_exit:
-                os._exit(EXIT_INTERRUPTED)
             raise KeyboardInterrupt
         viewer.interrupted = viewer.closed = True
 
@@ -284,19 +280,19 @@ def _catch_interrupts(viewer, hard_exit: bool) -> dict:
 
 
 def run(scene_path=None, max_frames=None, *, size=None, script=None, opts=None, settings=None,
-        persist=None, hard_exit=False) -> int:
+        persist=None) -> int:
     """Open the viewer on a scene and run until the window closes (or the script is done).
 
     max_frames: an upper bound on frames (tests; with a script, its own limits apply: see
     viewer.script); script: a viewer.script.Script of actions and outputs; opts/settings: the
     starting Options and ViewSettings. Returns the exit code (130 after Ctrl-C); a failed
-    script step is reported on stderr in one line. hard_exit: if a tile, a load or a shading is
-    still running after closing, end the process at once (os._exit) rather than wait for it.
+    script step is reported on stderr in one line. A tile, a load or a shading may still be
+    running on its thread when it returns.
     """
     if persist is None:
         persist = script is None and max_frames is None
     viewer = Viewer(size=size, persist=persist)
-    handlers = _catch_interrupts(viewer, hard_exit)
+    handlers = _catch_interrupts(viewer)
     code = 0
     try:
         if opts is not None:
@@ -323,19 +319,9 @@ def run(scene_path=None, max_frames=None, *, size=None, script=None, opts=None, 
         elif script is not None:
             code = script.exit_code
     finally:
-        stopped = viewer.close()
+        viewer.close()
         for sig, handler in handlers.items():
             signal.signal(sig, handler)
     if script is not None and script.failure:
         print(f"psrt view: error: {script.failure}", file=sys.stderr)
-    if hard_exit and (not stopped or _background_threads()):
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code)  # leave the tile, load or shading in flight: nothing waits for its result
     return code
-
-
-def _background_threads() -> list:
-    """Threads still running besides this one (a load, a shading, tiles): the interpreter's exit
-    would wait for them or, for daemon threads, compete with them for the GIL."""
-    return [t for t in threading.enumerate() if t is not threading.current_thread() and t.is_alive()]

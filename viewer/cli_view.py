@@ -105,7 +105,8 @@ def run_view(args) -> int:
     """Run the viewer for parsed `psrt view` arguments; returns the exit code.
 
     Tracer options come from the option flags; --set assignments go to the options or the
-    viewer settings.
+    viewer settings. With args.end_process (the program's own command line) the process ends
+    when the window has closed (end_process) instead of returning.
     """
     from tracer.cli import flag_options
     from viewer.script import Script, parse_at
@@ -136,15 +137,31 @@ def run_view(args) -> int:
                         window_screenshot=args.window_screenshot, dump_inspector=args.dump_inspector,
                         aov=args.aov, status=args.status, wait_reference=True if args.wait_reference else None,
                         frames=args.frames, timeout=args.timeout)
-    return run(args.scene, size=args.size, script=script, opts=opts, settings=settings, hard_exit=True)
+    try:
+        code = run(args.scene, args.frames, size=args.size, script=script, opts=opts, settings=settings)
+    except KeyboardInterrupt:  # a second Ctrl-C
+        code = 130
+    if getattr(args, "end_process", False):
+        end_process(code)
+    return code
 
 
-def main(argv=None) -> int:
-    """`python -m viewer.cli_view SCENE ...`: the view command on its own."""
+def end_process(code: int) -> None:
+    """End the program at once, its outputs written: a tile, load or shading still running on
+    its thread cannot be interrupted and nothing waits for its result, while the interpreter's
+    exit would wait for the tile threads and then tear down numba's modules (0.4-1 s here)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
+def main(argv=None, end_process=None) -> int:
+    """`python -m viewer.cli_view SCENE ...`: the view command on its own. end_process: end the
+    process when the window closes (default: when run as the program, argv None)."""
     parser = argparse.ArgumentParser(prog="psrt")
     add_view_command(parser.add_subparsers(dest="command", required=True))
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = parser.parse_args(["view"] + argv)
+    args = parser.parse_args(["view"] + list(sys.argv[1:] if argv is None else argv))
+    args.end_process = argv is None if end_process is None else end_process
     return args.func(args)
 
 
