@@ -5,7 +5,8 @@ viewer's `view` command adds its flags without loading glfw or OpenGL (the windo
 only when the command runs). Bad input (scene errors, option values, sizes, output paths)
 prints one line naming the file, key or flag on stderr and exits with status 2 (usage errors
 too: `--help` shows the usage); a failed write exits with 1. Set PSRT_TRACEBACK=1 to get the
-traceback instead.
+traceback instead. Run as the program (main() without argv: the console script, python -m
+psrt), `view` ends the process as soon as the window has closed.
 """
 from __future__ import annotations
 
@@ -48,6 +49,7 @@ def main(argv=None) -> int:
     if args.command is None:
         parser.print_help(sys.stderr)
         return 2
+    args.end_process = argv is None  # the program, not a caller in the same process
     try:
         return args.func(args) or 0
     except (SceneError, ValueError) as e:

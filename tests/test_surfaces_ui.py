@@ -188,7 +188,7 @@ def warm_kernels(plate):
 def test_inspector_dump_has_the_plate_surface(xvfb, warm_kernels, tmp_path, plate):
     dump = tmp_path / "trace.json"
     x, y = PLATE_PIXEL
-    code, _, err = run_view(xvfb, [SAMPLES / "plate.json", "--size", "96x96", "--frames", 3000,
+    code, _, err = run_view(xvfb, [SAMPLES / "plate.json", "--size", "96x96",
                                    "--click", f"{x},{y}", "--dump-inspector", dump], tmp_path)
     assert code == 0, err
     got = json.loads(dump.read_text())
@@ -206,7 +206,7 @@ def test_inspector_dump_has_the_plate_surface(xvfb, warm_kernels, tmp_path, plat
 
 def test_trims_off_in_the_window_shows_the_hole_hit(xvfb, warm_kernels, tmp_path, hole_pixel):
     dump = tmp_path / "trace.json"
-    code, status, err = run_view(xvfb, [SAMPLES / "plate.json", "--size", "96x96", "--frames", 3000, "--no-trims",
+    code, status, err = run_view(xvfb, [SAMPLES / "plate.json", "--size", "96x96", "--no-trims",
                                         "--click", "{},{}".format(*hole_pixel), "--dump-inspector", dump], tmp_path)
     assert code == 0, err
     assert status["options"]["trims"] is False

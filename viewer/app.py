@@ -2,11 +2,17 @@
 
 Frame: poll events -> backend new frames -> script inputs -> ImGui widgets -> apply worker
 events -> draw the view (image, overlay, outlines) -> blit it -> ImGui on top -> swap.
-Nothing raised inside a frame closes the window: it is logged and shown in the UI.
+Nothing raised inside a frame closes the window: it is logged and shown in the UI. Scene
+files load off the UI thread (viewer.loader), so the window keeps drawing whatever a load does.
+Ctrl-C (or SIGTERM) closes the window at the end of the frame; a tile still being traced
+cannot be interrupted, so the command line (cli_view) ends the process without waiting for it.
 """
 from __future__ import annotations
 
 import ctypes
+import signal
+import sys
+import threading
 import time
 import traceback
 
@@ -18,7 +24,7 @@ import moderngl  # noqa: E402
 from .display import Display  # noqa: E402
 from .frame_events import EventSink  # noqa: E402
 from .interaction import Interaction  # noqa: E402
-from .loader import open_scene  # noqa: E402
+from .loader import SceneLoader, adopt  # noqa: E402
 from .overlay import Overlay  # noqa: E402
 from .state import AppState, load_persistent, save_persistent  # noqa: E402
 from .ui_camera import ui_camera  # noqa: E402
@@ -31,6 +37,7 @@ from .ui_overlays import ui_overlays  # noqa: E402
 from .ui_scene import ui_scene  # noqa: E402
 from .ui_stats import ui_stats  # noqa: E402
 from .ui_tracer import ui_tracer  # noqa: E402
+from .ui_viewport import ui_viewport  # noqa: E402
 from .worker import GeometryCache, RenderWorker  # noqa: E402
 
 PANEL_WIDTH = 400
@@ -40,6 +47,8 @@ TARGET_FPS = 60.0
 BUSY_FPS = 36.0  # while tiles are traced: above the 30 frames/s promised, leaving CPU to the tracer
 IDLE_WAIT = 0.1
 AWAKE_AFTER_INPUT = 0.5
+STOP_WAIT = 0.1  # seconds closing waits for a tile in flight before leaving it running
+EXIT_INTERRUPTED = 130
 
 
 class Viewer:
@@ -81,12 +90,14 @@ class Viewer:
             self.state.log(self.display.error, "error")
         self.geometry = GeometryCache()
         self.worker = RenderWorker(self.geometry)
+        self.loader = SceneLoader()
         self.overlay = Overlay()
         self.events = EventSink(self)
         self.interaction = Interaction(self)
         self.region = (0, 0, 0, 0)
         self.last_frame_time = time.perf_counter()
         self.closed = False
+        self.interrupted = False
         self._last_internal_error = None
         self.awake_until = 0.0
 
@@ -95,12 +106,26 @@ class Viewer:
         if paths:
             self.state.pending_open = paths[0]
 
-    def open(self, path) -> bool:
-        ok = open_scene(self.state, self.geometry, path)
-        if ok:
-            self.overlay.reset(self.state.settings.overlay, self.state.image_size)
+    def open(self, path):
+        """Start loading `path` off the UI thread (a load in flight is abandoned); returns the Load."""
+        load = self.loader.start(path, self.state.opts.precision)
+        self.state.loading = (load.name, load.started)
+        return load
+
+    def _poll_load(self) -> None:
+        """Cancel, or adopt the finished load; either way the window never waits on it."""
+        st = self.state
+        if st.cancel_load:
+            st.cancel_load = False
+            load = self.loader.cancel()
+            if load is not None:
+                st.failed_loads.append(f"loading {load.path} cancelled")
+                st.log(f"cancelled loading {load.path}" + ("; keeping the current scene" if st.scene else ""))
+        load = self.loader.poll()
+        if load is not None and adopt(st, self.geometry, load):
+            self.overlay.reset(st.settings.overlay, st.image_size)
             self.display.set_boxes(None)
-        return ok
+        st.loading = (self.loader.current.name, self.loader.current.started) if self.loader.current else None
 
     # --- layout ---------------------------------------------------------------------------
     def _layout(self) -> None:
@@ -150,17 +175,7 @@ class Viewer:
         imgui.end()
         ui_help(st)
         self.interaction.hover_tooltip()
-        if st.error:
-            x, y, w, h = self.region
-            imgui.set_next_window_pos((x + 8, y + h - 8), imgui.Cond_.always, (0.0, 1.0))
-            imgui.set_next_window_size((max(w - 16, 50), 0))
-            imgui.set_next_window_bg_alpha(0.8)
-            imgui.begin("##error-banner", None, imgui.WindowFlags_.no_decoration | imgui.WindowFlags_.no_inputs |
-                        imgui.WindowFlags_.no_focus_on_appearing | imgui.WindowFlags_.no_nav)
-            imgui.push_style_color(imgui.Col_.text, (1.0, 0.35, 0.3, 1.0))
-            imgui.text_wrapped(st.error.splitlines()[0][:300])
-            imgui.pop_style_color()
-            imgui.end()
+        ui_viewport(st, self.region)
 
     def _inspector(self, st) -> None:
         if ui_inspector(st):
@@ -178,7 +193,8 @@ class Viewer:
     # --- one frame ------------------------------------------------------------------------
     def frame(self, script=None) -> None:
         st = self.state
-        if script is None and st.render.phase in ("idle", "done", "error", "cancelled") \
+        waiting = bool(st.loading or st.compiling or st.inspecting)  # their notes count seconds
+        if script is None and st.render.phase in ("idle", "done", "error", "cancelled") and not waiting \
                 and self.worker.events.empty() and time.perf_counter() > self.awake_until:
             start = time.perf_counter()
             glfw.wait_events_timeout(IDLE_WAIT)  # idle: sleep until input
@@ -195,7 +211,7 @@ class Viewer:
         if st.pending_open:
             path, st.pending_open = st.pending_open, None
             self._guard(self.open, path)
-        for step in (self._layout, self.events.drain, self.interaction.handle_input, self._panels,
+        for step in (self._poll_load, self._layout, self.events.drain, self.interaction.handle_input, self._panels,
                      self.interaction.refresh_inspection, self.events.request, self.events.update_overlay):
             self._guard(step)  # one failing step must not stop the others, nor close the window
         imgui.render()
@@ -220,7 +236,8 @@ class Viewer:
         glfw.swap_buffers(self.window)
         now = time.perf_counter()
         dt = now - self.last_frame_time
-        period = 1.0 / (BUSY_FPS if st.render.phase in ("coarse", "full", "reference") else TARGET_FPS)
+        busy = st.render.phase in ("coarse", "full", "reference") or waiting
+        period = 1.0 / (BUSY_FPS if busy else TARGET_FPS)
         if dt < period:
             time.sleep(period - dt)
             now = time.perf_counter()
@@ -235,7 +252,8 @@ class Viewer:
         return self.closed or glfw.window_should_close(self.window)
 
     def close(self) -> None:
-        self.worker.stop()
+        """Stop the worker (a tile in flight is left running) and close the window."""
+        self.worker.stop(STOP_WAIT)
         if self.persist:
             save_persistent(self.state)
         imgui.backends.opengl3_shutdown()
@@ -246,16 +264,36 @@ class Viewer:
         glfw.terminate()
 
 
+def _catch_interrupts(viewer) -> dict:
+    """Ctrl-C and SIGTERM close the window at the end of the frame (a second Ctrl-C raises
+    KeyboardInterrupt); returns the handlers to restore. Signals can be caught only on the
+    main thread."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+
+    def close(signum, _frame):
+        if viewer.interrupted and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        viewer.interrupted = viewer.closed = True
+
+    return {sig: signal.signal(sig, close) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+
 def run(scene_path=None, max_frames=None, *, size=None, script=None, opts=None, settings=None,
         persist=None) -> int:
     """Open the viewer on a scene and run until the window closes (or the script is done).
 
-    max_frames: an upper bound on frames (tests); script: a viewer.script.Script of actions and
-    outputs; opts/settings: the starting Options and ViewSettings. Returns the exit code.
+    max_frames: an upper bound on frames (tests; with a script, its own limits apply: see
+    viewer.script); script: a viewer.script.Script of actions and outputs; opts/settings: the
+    starting Options and ViewSettings. Returns the exit code (130 after Ctrl-C); a failed
+    script step is reported on stderr in one line. A tile, a load or a shading may still be
+    running on its thread when it returns.
     """
     if persist is None:
         persist = script is None and max_frames is None
     viewer = Viewer(size=size, persist=persist)
+    handlers = _catch_interrupts(viewer)
+    code = 0
     try:
         if opts is not None:
             viewer.state.opts = opts
@@ -267,12 +305,23 @@ def run(scene_path=None, max_frames=None, *, size=None, script=None, opts=None, 
             script.start(viewer)
         while not viewer.should_close():
             viewer.frame(script)
-            if script is not None and script.done:
+            if script is not None:
+                if not script.done:
+                    script.check_limits(viewer)
+                if script.done:
+                    break
+            elif max_frames is not None and viewer.state.frame_count >= max_frames:
                 break
-            if max_frames is not None and viewer.state.frame_count >= max_frames:
-                if script is not None:
-                    script.give_up(viewer)
-                break
-        return script.exit_code if script is not None else 0
+        if viewer.interrupted:
+            code = EXIT_INTERRUPTED
+            if script is not None:
+                script.interrupt(viewer)
+        elif script is not None:
+            code = script.exit_code
     finally:
         viewer.close()
+        for sig, handler in handlers.items():
+            signal.signal(sig, handler)
+    if script is not None and script.failure:
+        print(f"psrt view: error: {script.failure}", file=sys.stderr)
+    return code

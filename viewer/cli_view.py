@@ -30,6 +30,26 @@ def _click(text):
     return _pair(text, ",", "X,Y in image pixels (column, row; row 0 at the top)")
 
 
+def _count(text):
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number of frames >= 0, got {text!r}")
+    return n
+
+
+def _seconds(text):
+    try:
+        t = float(text)
+    except ValueError:
+        t = float("nan")
+    if not (0 < t < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return t
+
+
 def add_view_command(subparsers) -> argparse.ArgumentParser:
     """Add `view` to an argparse subparsers object; returns the subparser.
 
@@ -40,9 +60,11 @@ def add_view_command(subparsers) -> argparse.ArgumentParser:
 
     p = subparsers.add_parser(
         "view", help="open the interactive viewer (or run it scripted)",
-        description="Open the interactive debugger window on a scene. With --frames, --click, --screenshot, "
-                    "--dump-inspector... the real window runs the given actions, writes the outputs once the "
-                    "render has finished, and exits (--frames is only an upper bound).")
+        description="Open the interactive debugger window on a scene. With --click, --screenshot, "
+                    "--dump-inspector, --status... the real window runs the given actions, writes the outputs once "
+                    "the render has finished, and exits: 0 when every step worked, 3 on --timeout or --frames, "
+                    "4 when the click failed, 5 when a scene failed to load, 6 when the render failed, 2 when an "
+                    "output could not be written, 130 on Ctrl-C (with one line on stderr saying why).")
     p.add_argument("scene", nargs="?", help="scene .json or patch .bpt file")
     p.add_argument("--size", type=_size, metavar="WxH",
                    help="fixed image size in pixels (default: follow the window)")
@@ -54,11 +76,17 @@ def add_view_command(subparsers) -> argparse.ArgumentParser:
 
 def add_script_flags(p) -> None:
     p.add_argument("--at", action="append", default=[], metavar="WHEN:OPTION=VALUE",
-                   help="change an option at UI frame WHEN, or WHEN=mid-render: while full tiles arrive, "
-                        "or WHEN=after-render: once the frame is traced")
+                   help="change an option at UI frame WHEN, or WHEN=mid-render: once the first full-resolution "
+                        "tile has arrived (the render waits there for it), or WHEN=after-render: once the frame "
+                        "is traced")
     p.add_argument("--click", type=_click, metavar="X,Y", help="click image pixel X,Y once the render is done")
     p.add_argument("--load", metavar="FILE", help="open FILE in the running viewer after the first render")
-    p.add_argument("--frames", type=int, metavar="N", help="stop after at most N UI frames")
+    p.add_argument("--frames", type=_count, metavar="N",
+                   help="give up (exit 3) after N UI frames drawn while the script waits for nothing (frames "
+                        "spent waiting for a load, a compile or the render do not count: --timeout bounds those)")
+    p.add_argument("--timeout", type=_seconds, metavar="SECONDS",
+                   help="give up (exit 3, outputs written as they are) after SECONDS of wall clock; by default "
+                        "a scripted run waits as long as its load, compiles and render take")
     p.add_argument("--screenshot", metavar="PNG", help="write the view (image, overlays, box outlines)")
     p.add_argument("--window-screenshot", metavar="PNG", help="write the whole window, panels included")
     p.add_argument("--dump-inspector", metavar="JSON", help="write the clicked pixel's trace (contract JSON)")
@@ -69,15 +97,16 @@ def add_script_flags(p) -> None:
 
 
 def _scripted(args) -> bool:
-    return any((args.frames is not None, args.screenshot, args.window_screenshot, args.dump_inspector,
-                args.click, args.aov, args.status, args.at, args.load))
+    return any((args.frames is not None, args.timeout is not None, args.screenshot, args.window_screenshot,
+                args.dump_inspector, args.click, args.aov, args.status, args.at, args.load))
 
 
 def run_view(args) -> int:
     """Run the viewer for parsed `psrt view` arguments; returns the exit code.
 
     Tracer options come from the option flags; --set assignments go to the options or the
-    viewer settings.
+    viewer settings. With args.end_process (the program's own command line) the process ends
+    when the window has closed (end_process) instead of returning.
     """
     from tracer.cli import flag_options
     from viewer.script import Script, parse_at
@@ -106,16 +135,33 @@ def run_view(args) -> int:
     if _scripted(args):
         script = Script(at=at, click=args.click, load=args.load, screenshot=args.screenshot,
                         window_screenshot=args.window_screenshot, dump_inspector=args.dump_inspector,
-                        aov=args.aov, status=args.status, wait_reference=True if args.wait_reference else None)
-    return run(args.scene, args.frames, size=args.size, script=script, opts=opts, settings=settings)
+                        aov=args.aov, status=args.status, wait_reference=True if args.wait_reference else None,
+                        frames=args.frames, timeout=args.timeout)
+    try:
+        code = run(args.scene, args.frames, size=args.size, script=script, opts=opts, settings=settings)
+    except KeyboardInterrupt:  # a second Ctrl-C
+        code = 130
+    if getattr(args, "end_process", False):
+        end_process(code)
+    return code
 
 
-def main(argv=None) -> int:
-    """`python -m viewer.cli_view SCENE ...`: the view command on its own."""
+def end_process(code: int) -> None:
+    """End the program at once, its outputs written: a tile, load or shading still running on
+    its thread cannot be interrupted and nothing waits for its result, while the interpreter's
+    exit would wait for the tile threads and then tear down numba's modules (0.4-1 s here)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
+def main(argv=None, end_process=None) -> int:
+    """`python -m viewer.cli_view SCENE ...`: the view command on its own. end_process: end the
+    process when the window closes (default: when run as the program, argv None)."""
     parser = argparse.ArgumentParser(prog="psrt")
     add_view_command(parser.add_subparsers(dest="command", required=True))
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = parser.parse_args(["view"] + argv)
+    args = parser.parse_args(["view"] + list(sys.argv[1:] if argv is None else argv))
+    args.end_process = argv is None if end_process is None else end_process
     return args.func(args)
 
 

@@ -1,17 +1,19 @@
 """Between the worker and the screen: start jobs when what should be traced changes, and turn
-the worker's events (coarse preview, tiles, frame, reference) into texture uploads and stats."""
+the worker's events (coarse preview, tiles, frame, reference) into texture uploads and stats.
+
+Only what is traced starts a job (desired_key: scene, trace options, view, size). The display
+mode is not traced: a change while a job runs goes to the worker (set_mode), which re-shades
+and carries on; after the frame it is re-shaded off the UI thread (shade_async)."""
 from __future__ import annotations
 
 import queue
 import time
 
-import numpy as np
-
 from tracer import colormap
 from tracer.stats import error_stats, frame_stats
 
 from .state import RenderState
-from .worker import Job, shade_async, trace_options
+from .worker import Job, shade_async, trace_options, upscale
 
 DRAIN_SECONDS = 0.012   # uploads per UI frame, so a burst of tiles cannot stall the UI
 RANGE_INTERVAL = 0.25   # recompute the overlay's auto range at most this often while rendering
@@ -22,7 +24,7 @@ class EventSink:
     def __init__(self, viewer):
         self.v = viewer
         self.job_id = 0
-        self.job_mode = None      # display mode the running job shades its tiles in
+        self.job_mode = None      # display mode last asked of the running job
         self.shaded_mode = None   # display mode of the colours in the texture
         self.reshading = None
         self.range_time = 0.0
@@ -40,8 +42,12 @@ class EventSink:
         key = self.desired_key()
         if key is None:
             return
-        if key != r.key or (r.phase in RUNNING and st.opts.mode != self.job_mode):
+        if key != r.key:
             self._submit(key)
+        elif r.phase in RUNNING:
+            if st.opts.mode != self.job_mode:
+                self.job_mode = st.opts.mode
+                self.v.worker.set_mode(r.job, st.opts.mode)
         elif r.phase in ("reference", "done") and st.opts.mode != self.shaded_mode \
                 and self.reshading != st.opts.mode:
             self.reshading = st.opts.mode
@@ -68,6 +74,9 @@ class EventSink:
                 kind, job, payload = self.v.worker.events.get_nowait()
             except queue.Empty:
                 return
+            if kind == "compiling":  # the worker's, whichever job waits on it
+                self.v.state.compiling = payload  # (variant label, since) or None when done
+                continue
             if job != self.v.state.render.job:
                 if kind == "cancelled":
                     self.v.state.renders_cancelled += 1
@@ -87,15 +96,11 @@ class EventSink:
         if r.phase != "error":
             r.phase = name
 
-    def _on_compiling(self, payload):
-        self.v.state.render.compiling = payload  # (variant label, since) or None when done
-
     def _on_coarse(self, payload):
-        coarse, rgb, factor = payload
+        coarse, rgb, factor, mode = payload
         w, h = self.v.state.image_size
-        up = np.repeat(np.repeat(rgb, factor, 0), factor, 1)[:h, :w]
-        self.v.display.upload(up, None)
-        self.shaded_mode = self.job_mode
+        self.v.display.upload(upscale(rgb, factor, (w, h)), None)
+        self.shaded_mode = mode
         ch = self._overlay_channel()
         if ch is not None:
             if not self.v.overlay.fill_coarse(coarse, (w, h), factor):
@@ -106,6 +111,11 @@ class EventSink:
         r = self.v.state.render
         r.frame, r.colour = payload
         r.tiles_total = r.frame.tiles_total
+
+    def _on_recolour(self, mode):
+        """The worker re-shaded the colours traced so far in another mode."""
+        self.v.display.upload(self.v.state.render.colour, None)
+        self.shaded_mode = mode
 
     def _on_tile(self, rect):
         r = self.v.state.render

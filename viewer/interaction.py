@@ -1,20 +1,45 @@
 """Mouse and keyboard on the image: orbit, pan, zoom, click to inspect, shortcuts, hover readout.
 
 Input is read through ImGui (so scripted input injected into ImGui's IO takes the same path)
-and ignored while ImGui wants it (a panel under the cursor, a text field with focus).
+and ignored while ImGui wants it (a panel under the cursor, a text field with focus). A click's
+pixel is traced on a thread of its own: its first trace compiles the step-recording kernels,
+which must not stop the window drawing.
 """
 from __future__ import annotations
 
+import threading
+import time
 import traceback
 
 from imgui_bundle import imgui
 
 from . import camera_control
-from .picking import hover_values, inspect_pixel, outline_vertices, window_to_pixel
+from .picking import hover_values, inspect_pixel, outline_vertices, uncompiled_variants, window_to_pixel
 from .ui_camera import frame_scene, reset_view, restore_bookmark, save_bookmark
 
 CLICK_SLOP = 3.0  # pixels the mouse may move between press and release and still be a click
 BOOKMARK_KEYS = [getattr(imgui.Key, f"_{i}") for i in range(1, 10)]
+
+
+class PixelJob:
+    """One pixel traced for the inspector on a daemon thread; `result` is an Inspection or an error."""
+
+    def __init__(self, geometry, scene, opts, view, size, pixel, keep_step=None, select=True):
+        self.pixel, self.keep_step, self.select, self.scene = pixel, keep_step, select, scene
+        self.started = time.perf_counter()
+        self.compiling = []  # variant labels its trace compiles first
+        self.result = None
+        self.done = threading.Event()
+        args = (geometry, scene, opts, view, size, *pixel)
+        threading.Thread(target=self._run, args=args, name="psrt-inspect", daemon=True).start()
+
+    def _run(self, geometry, scene, opts, *rest):
+        try:
+            self.compiling = uncompiled_variants(geometry, scene, opts)
+            self.result = inspect_pixel(geometry, scene, opts, *rest)
+        except Exception as e:
+            self.result = f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=3)}"
+        self.done.set()
 
 
 class Interaction:
@@ -25,6 +50,7 @@ class Interaction:
         self.middle = False
         self.hover = None
         self.new_inspection = False  # the panel switches to the Inspector tab once
+        self.pending: PixelJob | None = None  # the pixel being traced
 
     def _pixel(self, mx, my):
         return window_to_pixel(self.v.region, self.v.state.image_size, mx, my)
@@ -88,7 +114,7 @@ class Interaction:
         if pressed(imgui.Key.h) or pressed(imgui.Key.f1):
             st.show_help = not st.show_help
         if pressed(imgui.Key.escape):
-            st.inspector = None
+            st.inspector, self.pending = None, None
             self.update_outlines()
         if pressed(imgui.Key.o):
             self.toggle_overlay()
@@ -102,35 +128,49 @@ class Interaction:
             st.last_overlay = st.settings.overlay
             st.settings = replace(st.settings, overlay="none")
 
-    def inspect(self, px: int, py: int) -> bool:
-        """Trace pixel (px, py) into the inspector; errors are shown, never raised."""
+    def inspect(self, px: int, py: int, keep_step=None, select=True) -> PixelJob:
+        """Start tracing pixel (px, py) for the inspector (a pixel still being traced is dropped)."""
         st = self.v.state
-        try:
-            st.inspector = inspect_pixel(self.v.geometry, st.scene, st.opts, st.view, st.image_size, px, py)
-        except Exception as e:
-            st.log(f"inspecting pixel {px},{py} failed: {type(e).__name__}: {e}\n"
-                   f"{traceback.format_exc(limit=3)}", "error")
-            return False
+        self.pending = PixelJob(self.v.geometry, st.scene, st.opts, st.view, st.image_size, (px, py),
+                                keep_step, select)
+        return self.pending
+
+    def _adopt_inspection(self, job: PixelJob) -> None:
+        """The traced pixel into the inspector; errors are shown, never raised."""
+        st = self.v.state
+        px, py = job.pixel
+        if job.scene is not st.scene:
+            return  # another scene was opened meanwhile
+        if isinstance(job.result, str):
+            st.log(f"inspecting pixel {px},{py} failed: {job.result}", "error")
+            return
+        st.inspector = job.result
+        if job.keep_step is not None and 0 <= job.keep_step < len(st.inspector.trace.steps_f) - 1:
+            st.inspector.step = job.keep_step
         self.update_outlines()
-        self.new_inspection = True
+        self.new_inspection = job.select
         t = st.inspector.trace
         st.log(f"pixel {px},{py}: " + (f"hit patch {t.patch} at t={t.t:.6g}" if t.hit else "miss") +
                f", {len(t.steps_f)} boxes")
-        return True
 
     def refresh_inspection(self) -> None:
-        """Re-trace the inspected pixel when the tracer options change (same view, same pixel)."""
+        """Adopt a traced pixel; re-trace the inspected pixel when the tracer options change (same
+        view, same pixel)."""
         from .worker import trace_options
-        st, ins = self.v.state, self.v.state.inspector
+        st, job = self.v.state, self.pending
+        if job is not None:
+            if not job.done.is_set():
+                st.inspecting = (job.pixel, job.started, job.compiling)
+                return
+            self.pending = None
+            self._adopt_inspection(job)
+        st.inspecting = None
+        ins = st.inspector
         if ins is None or ins.opts is None or ins.view != st.view or st.scene is None:
             return
         if trace_options(ins.opts) != trace_options(st.opts):
-            step = ins.step
             ins.opts = st.opts  # a failing re-trace is reported once, not every frame
-            if self.inspect(*ins.pixel) and 0 <= step < len(st.inspector.trace.steps_f) - 1:
-                st.inspector.step = step
-                self.update_outlines()
-            self.new_inspection = False
+            self.inspect(*ins.pixel, keep_step=ins.step, select=False)
 
     def update_outlines(self) -> None:
         ins = self.v.state.inspector

@@ -13,6 +13,7 @@ from tracer.search_steps import EVENT_NAMES
 from tracer.options import Options
 from tracer.plot import EVENT_COLOURS
 from tracer.trace_one import trace_ray_steps
+from tracer.variants import COMPILED, label, variant_for
 
 from .state import Inspection
 from .surface_info import hit_surface, info_json
@@ -48,12 +49,21 @@ def pixel_ray(view, size, precision: str, px: int, py: int):
     return origins[py, px], dirs[py, px], view.pixel_angle(height)
 
 
+REFERENCE_OPTIONS = Options(criterion="float", precision="f64")
+
+
+def uncompiled_variants(geometry, scene, opts: Options) -> list:
+    """Labels of the step-recording kernel variants inspect_pixel needs and this process has not
+    compiled (or loaded) yet: the first inspection compiles them."""
+    needed = [variant_for(geometry.get(scene, o.precision), o, trace=True) for o in (opts, REFERENCE_OPTIONS)]
+    return [label(v) for v in dict.fromkeys(needed) if ("ray", v) not in COMPILED]
+
+
 def inspect_pixel(geometry, scene, opts: Options, view, size, px: int, py: int) -> Inspection:
     """Trace pixel (px, py) with step recording in the working options and in float64."""
     origin, direction, angle = pixel_ray(view, size, opts.precision, px, py)
     trace = trace_ray_steps(geometry.get(scene, opts.precision), opts, origin, direction, angle, (px, py))
-    ref_opts = Options(criterion="float", precision="f64")
-    ref = trace_ray_steps(geometry.get(scene, "f64"), ref_opts, origin, direction, 0.0, (px, py))
+    ref = trace_ray_steps(geometry.get(scene, "f64"), REFERENCE_OPTIONS, origin, direction, 0.0, (px, py))
     error = None
     if trace.hit and ref.hit:
         error = float(np.sum(np.abs(trace.position - ref.position)))

@@ -86,7 +86,6 @@ class RenderState:
     ref_seconds: float = 0.0
     stats: dict | None = None
     error_stats: dict | None = None
-    compiling: tuple | None = None  # (kernel variant label, perf_counter since) while one compiles
 
 
 @dataclass
@@ -123,6 +122,12 @@ class AppState:
     show_help: bool = False
     open_path: str = ""
     pending_open: str | None = None      # set by drag-and-drop, the Scene panel or the script
+    loading: tuple | None = None         # (file name, perf_counter since) while a load runs
+    compiling: tuple | None = None       # (kernel variant label, perf_counter since) while one compiles
+    inspecting: tuple | None = None      # (pixel, since, [variant labels it compiles]) while one is traced
+    cancel_load: bool = False            # the Cancel button was pressed
+    failed_loads: list = field(default_factory=list)  # one line per load that failed or was cancelled
+    notes: list = field(default_factory=list)  # the status lines drawn over the image this frame
     pending_screenshot: str | None = None  # taken by the loop after drawing the view
     last_overlay: str = "effort"         # what the O key toggles back to
     output_dir: str = "."

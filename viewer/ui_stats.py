@@ -23,8 +23,8 @@ def ui_stats(state) -> bool:
         return False
     r = state.render
     imgui.text(f"UI {state.fps:.0f} frames/s   render: {r.phase}")
-    if r.compiling is not None:
-        name, since = r.compiling
+    if state.compiling is not None:
+        name, since = state.compiling
         imgui.text_colored((1.0, 0.8, 0.3, 1.0), f"compiling the {name} kernel: {time.perf_counter() - since:.0f} s")
     if r.tiles_total:
         imgui.progress_bar(r.tiles_done / r.tiles_total, (-1, 0), f"tiles {r.tiles_done}/{r.tiles_total}")

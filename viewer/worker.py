@@ -5,6 +5,10 @@ tiles ordered from the centre out, then (optionally) the float64 reference of th
 same rays. Tiles are shaded in the worker (tracer.shade) and reported as events;
 the UI thread drains the events and uploads the rects. The numba kernels release
 the GIL, so the UI thread keeps running while tiles are traced.
+
+The display mode is not part of a job: set_mode changes it while the job runs, and the
+worker re-shades what it has traced so far (the trace is never restarted for it). A tile
+in flight cannot be interrupted; cancelling stops the job before its next tile.
 """
 from __future__ import annotations
 
@@ -91,6 +95,31 @@ class Job:
     frame: object = None    # a finished Frame: only trace its float64 reference
 
 
+class TileCancel:
+    """The cancel event as trace_rays sees it, asked before every tile. With a `hold` event, only
+    the pass's first `allowed` tiles start until it is set (or the job is cancelled): a scripted
+    mid-render change then always lands mid-render, however fast the machine."""
+
+    def __init__(self, cancel: threading.Event, hold: threading.Event | None = None, allowed: int = 1):
+        self.cancel, self.hold, self.allowed = cancel, hold, allowed
+        self._lock = threading.Lock()
+
+    def is_set(self) -> bool:
+        if self.hold is not None:
+            with self._lock:
+                self.allowed -= 1
+                held = self.allowed < 0
+            while held and not (self.hold.is_set() or self.cancel.is_set()):
+                self.hold.wait(0.02)
+        return self.cancel.is_set()
+
+
+def upscale(rgb: np.ndarray, factor: int, size) -> np.ndarray:
+    """The coarse preview's colours at full resolution (nearest), (H, W, 3)."""
+    w, h = size
+    return np.repeat(np.repeat(rgb, factor, 0), factor, 1)[:h, :w]
+
+
 def shade_async(frame, scene, mode: str, job_id: int, events: queue.Queue) -> threading.Thread:
     """Re-shade a finished frame in another mode off the UI thread; posts ("shaded", job_id, (mode, rgb))."""
     def run():
@@ -115,6 +144,8 @@ class RenderWorker:
         self._job = None
         self._cancel = threading.Event()
         self._stop = False
+        self._mode = (0, None)   # (job id, display mode) set while that job runs
+        self._hold = None        # full-resolution passes wait after one tile until it is set
         self._thread = threading.Thread(target=self._run, name="psrt-render", daemon=True)
         self._thread.start()
 
@@ -131,12 +162,28 @@ class RenderWorker:
             self._cancel.set()
             self._job = None
 
-    def stop(self, timeout: float = 2.0) -> None:
+    def set_mode(self, job_id: int, mode: str) -> None:
+        """Shade job `job_id`'s remaining tiles in `mode`, re-shading those already traced."""
+        self._mode = (job_id, mode)
+
+    def _mode_of(self, job) -> str:
+        job_id, mode = self._mode
+        return mode if job_id == job.id and mode is not None else job.opts.mode
+
+    def hold_mid_render(self) -> threading.Event:
+        """Hold full-resolution passes after their first tile until the returned event is set."""
+        self._hold = threading.Event()
+        return self._hold
+
+    def stop(self, timeout: float = 2.0) -> bool:
+        """Cancel and end the worker thread; False if it is still busy after `timeout` (a tile, a
+        compile or a geometry preparation cannot be interrupted)."""
         with self._cond:
             self._stop = True
             self._cancel.set()
             self._cond.notify()
         self._thread.join(timeout)
+        return not self._thread.is_alive()
 
     def _emit(self, kind, job, payload=None):
         self.events.put((kind, job.id, payload))
@@ -178,7 +225,6 @@ class RenderWorker:
         geom = self.geometry.get(scene, opts.precision)
         if cancel.is_set():
             return self._emit("cancelled", job)
-        mode = opts.mode
 
         # Coarse preview: same view at 1/COARSE resolution, shaded whole.
         cw, ch = max(1, math.ceil(width / COARSE)), max(1, math.ceil(height / COARSE))
@@ -188,24 +234,38 @@ class RenderWorker:
                             cancel=cancel, on_compile=self._on_compile(job))
         if cancel.is_set():
             return self._emit("cancelled", job)
-        self._emit("coarse", job, (coarse, shade(coarse, scene, mode, rect=(0, ch, 0, cw)), COARSE))
+        mode = self._mode_of(job)
+        rgb = shade(coarse, scene, mode, rect=(0, ch, 0, cw))
+        self._emit("coarse", job, (coarse, rgb, COARSE, mode))
 
-        # Full resolution, centre-out.
-        colour = np.zeros((height, width, 3), np.float32)
+        # Full resolution, centre-out; untraced pixels keep the preview's colours.
+        colour = upscale(rgb, COARSE, job.size).astype(np.float32)
         origins, dirs = primary_rays(view, width, height, opts.precision)
+        done, shaded = [], [mode]
 
         def on_tile(frame, rect):
+            if cancel.is_set():
+                return
             if frame_box[0] is None:
                 frame_box[0] = frame
                 self._emit("frame_start", job, (frame, colour))
+            now = self._mode_of(job)
+            if now != shaded[0]:  # the mode changed: re-shade what is there, keep tracing
+                shaded[0] = now
+                colour[:] = upscale(shade(coarse, scene, now, rect=(0, ch, 0, cw)), COARSE, job.size)
+                for y0, y1, x0, x1 in done:
+                    colour[y0:y1, x0:x1] = shade(frame, scene, now, rect=(y0, y1, x0, x1))
+                self._emit("recolour", job, now)
             y0, y1, x0, x1 = rect
-            colour[y0:y1, x0:x1] = shade(frame, scene, mode, rect=rect)
+            colour[y0:y1, x0:x1] = shade(frame, scene, now, rect=rect)
+            done.append(rect)
             self._emit("tile", job, rect)
 
         frame_box = [None]
+        hold = self._hold if self._hold is not None and not self._hold.is_set() else None
         self._phase(job, "full")
         frame = trace_rays(geom, opts, origins, dirs, view.pixel_angle(height), on_tile=on_tile,
-                           cancel=cancel, order=centre_out(width, height, opts.tile_size))
+                           cancel=TileCancel(cancel, hold), order=centre_out(width, height, opts.tile_size))
         if cancel.is_set() or frame.tiles_done < frame.tiles_total:
             return self._emit("cancelled", job)
         frame.extras["view"] = view
