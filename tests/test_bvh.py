@@ -80,6 +80,76 @@ def test_leaf_boxes_contain_their_patch_boxes(count):
     assert np.array_equal(bvh.node_box[0, 3:], boxes[:, 3:].max(axis=0))
 
 
+def grid_boxes(rng, side: int) -> np.ndarray:
+    """Unit-quad boxes of a side x side grid, a few lifted, shuffled: many equal centroids along
+    every axis, so the tie-breaking order decides most splits."""
+    i, j = np.meshgrid(np.arange(side, dtype=float), np.arange(side, dtype=float))
+    lo = np.column_stack([i.ravel(), j.ravel(), np.zeros(side * side)])
+    hi = lo + [1.0, 1.0, 0.0]
+    hi[rng.random(side * side) < 0.2, 2] = 0.5
+    return np.hstack([lo, hi])[rng.permutation(side * side)]
+
+
+TREES = [("random", 1), ("random", 2), ("random", 300), ("random", 1000), ("grid", 5), ("grid", 24),
+         ("duplicates", 200)]
+
+
+@pytest.mark.parametrize("kind,count", TREES)
+def test_tree_is_the_reference_builders_bit_for_bit(kind, count):
+    """The compiled builder makes the tree of the per-node stable argsort (tests/reference.py),
+    node for node, so renders through it are unchanged."""
+    rng = np.random.default_rng(300 + count)
+    if kind == "random":
+        boxes = random_boxes(rng, count)
+    elif kind == "grid":
+        boxes = grid_boxes(rng, count)
+    else:  # a few distinct boxes, each many times
+        boxes = random_boxes(rng, 7)[rng.integers(7, size=count)]
+    bvh = build_bvh(boxes)
+    node_box, node_child, node_patch = ref.build_bvh(boxes)
+    assert np.array_equal(bvh.node_child, node_child)
+    assert np.array_equal(bvh.node_patch, node_patch)
+    assert np.array_equal(bvh.node_box, node_box)
+
+
+def test_tree_of_the_teapot_leaves_is_the_reference_builders():
+    geom = prepare(S.teapot(floor=True), "f32")
+    node_box, node_child, node_patch = ref.build_bvh(geom.leaf_box)
+    assert np.array_equal(geom.bvh.node_child, node_child) and np.array_equal(geom.bvh.node_patch, node_patch)
+    assert np.array_equal(geom.bvh.node_box, node_box)
+
+
+@pytest.mark.parametrize("scale", [1e300, 1e-300])
+def test_extreme_scales_build_the_tree_of_the_scene_at_unit_scale(scale):
+    """Split costs are computed on boxes scaled by a power of two (bvh.cost_scale): at 1e300 the
+    areas would overflow, at 1e-300 underflow to zero. The tree is the one of the same boxes
+    near unit scale; node boxes stay the unscaled boxes' unions."""
+    boxes = random_boxes(np.random.default_rng(7), 300)
+    p2 = 2.0 ** np.round(np.log2(scale))
+    big = build_bvh(boxes * p2)
+    unit = build_bvh(boxes)
+    assert np.array_equal(big.node_child, unit.node_child) and np.array_equal(big.node_patch, unit.node_patch)
+    leaf = big.node_patch >= 0
+    mine = boxes[big.node_patch[leaf]] * p2
+    assert np.all(big.node_box[leaf, :3] <= mine[:, :3]) and np.all(big.node_box[leaf, 3:] >= mine[:, 3:])
+    assert big.depth == unit.depth
+
+
+def test_boxes_spanning_the_float64_range_build_a_tree():
+    """Coordinates from -1.7e308 to 1.7e308: extents and centroid sums overflow unscaled."""
+    boxes = random_boxes(np.random.default_rng(8), 100) * 8e306  # |coordinates| < 20
+    bvh = build_bvh(boxes)
+    _, _, leaves = walk(bvh)
+    assert sorted(leaves) == list(range(100))
+
+
+def test_boxes_that_are_not_finite_are_an_error():
+    boxes = random_boxes(np.random.default_rng(9), 4)
+    boxes[2, 4] = np.inf
+    with pytest.raises(ValueError, match="not finite"):
+        build_bvh(boxes)
+
+
 def test_empty_scene_is_an_error():
     with pytest.raises(ValueError, match="empty"):
         build_bvh(np.zeros((0, 6)))

@@ -116,6 +116,29 @@ def test_samples_are_listed_and_load():
     assert sample_files(SAMPLES / "no-such-folder") == []
 
 
+def test_scene_panel_summary_is_made_once_per_scene(sphere):
+    """The Scene panel's lines over all patches (types, counts, bounds) are computed when a scene
+    is first drawn, not every frame: a 100,000-patch scene must not cost a frame that long."""
+    from collections import Counter
+
+    from viewer import ui_scene
+    scene = load_scene(SAMPLES / "teapot.json")
+    kinds = Counter(("rational " if r else "") + ui_scene.DEGREE_NAMES.get((int(m), int(n)), f"degree {m}x{n}")
+                    for m, n, r in zip(scene.degree_u, scene.degree_v, scene.rational))  # one by one
+    assert ui_scene.patch_types(scene) == [f"{c} {k}" for k, c in kinds.most_common()] == ["32 bicubic", "1 bilinear"]
+    assert ui_scene.patch_types(sphere) == ["8 rational biquadratic", "1 bilinear"]
+    first = ui_scene.scene_summary(scene)
+    assert first["types"] == "33 patches: 32 bicubic, 1 bilinear" and first["counts"] == count_lines(scene_counts(scene))
+    calls = []
+    real = ui_scene.scene_counts
+    ui_scene.scene_counts = lambda sc: calls.append(sc) or real(sc)
+    try:
+        assert ui_scene.scene_summary(scene) is first and not calls  # the same scene: nothing recomputed
+        assert ui_scene.scene_summary(sphere)["types"].startswith("9 patches") and calls == [sphere]
+    finally:
+        ui_scene.scene_counts = real
+
+
 # ---- a hit's surface ----------------------------------------------------------------------
 
 def test_sphere_hit_reports_the_nurbs_surface_and_its_parameters(sphere):

@@ -96,8 +96,12 @@ class Geometry:
         return local[:, :3] / local[:, 3:] + self.frame[p]
 
 
+V, U = -3, -2  # the axes of a control grid [..., j, i, 4]: v rows, u columns
+
+
 def halve(grid: np.ndarray, axis: int):
-    """de Casteljau at 1/2 of a control grid along `axis`; returns both halves (float64)."""
+    """de Casteljau at 1/2 of control grids along `axis` (V or U; any leading axes are a batch of
+    grids); returns both halves (float64)."""
     g = np.moveaxis(np.asarray(grid, np.float64), axis, 0)
     left, right = [g[0]], [g[-1]]
     level = g
@@ -111,13 +115,27 @@ def halve(grid: np.ndarray, axis: int):
 def tight_box(grid: np.ndarray) -> np.ndarray:
     """Union of the control boxes of the four quarter patches (Lischinski & Gonczarowski 3.1).
 
-    grid: (n+1, m+1, 4) homogeneous points (w x, w y, w z, w) indexed [j, i]; the quarters
-    are split in 4-D and homogenised. Returns lo xyz, hi xyz.
+    grid: (..., n+1, m+1, 4) homogeneous points (w x, w y, w z, w) indexed [j, i], leading axes a
+    batch; the quarters are split in 4-D and homogenised. Returns (..., 6): lo xyz, hi xyz.
     """
-    quarters = [q for half in halve(grid, 1) for q in halve(half, 0)]
-    pts = np.concatenate([q.reshape(-1, 4) for q in quarters])
-    pts = pts[:, :3] / pts[:, 3:]
-    return np.concatenate([pts.min(axis=0), pts.max(axis=0)])
+    quarters = [q for half in halve(grid, U) for q in halve(half, V)]
+    pts = np.concatenate([q.reshape(q.shape[:-3] + (-1, 4)) for q in quarters], axis=-2)
+    pts = pts[..., :3] / pts[..., 3:]
+    return np.concatenate([pts.min(axis=-2), pts.max(axis=-2)], axis=-1)
+
+
+def _degree_groups(deg_u, deg_v):
+    """(m, n, indices) for each pair of degrees: the indices of the patches of degrees m x n."""
+    pairs, which = np.unique(np.column_stack([deg_u, deg_v]), axis=0, return_inverse=True)
+    which = which.ravel()
+    for g, (m, n) in enumerate(pairs):
+        yield int(m), int(n), np.flatnonzero(which == g)
+
+
+def _grids(points, start, idx, m: int, n: int) -> np.ndarray:
+    """The control grids (len(idx), n+1, m+1, width) of patches idx, all of degrees m x n."""
+    count = (m + 1) * (n + 1)
+    return points[np.asarray(start)[idx][:, None] + np.arange(count)].reshape(len(idx), n + 1, m + 1, -1)
 
 
 MAX_LEAVES = 16384  # pre-splitting stops before a scene would exceed this many leaves
@@ -136,33 +154,34 @@ def _leaves(scene, k: int):
 
     Returns points (Euclidean + weight), starts, degrees, rational flags, the scene patch and the
     (u0, u1, v0, v1) within it of every leaf, in scene patch order, v-major within a patch."""
+    n = scene.n_patches
     if k == 0:
-        n = scene.n_patches
         return (scene.points, np.asarray(scene.point_start, np.int64), scene.degree_u, scene.degree_v,
                 scene.rational, np.arange(n, dtype=np.int32), np.tile([0.0, 1.0, 0.0, 1.0], (n, 1)))
     cells = 2 ** k
-    points, starts, du, dv, rat, owner, param = [], [0], [], [], [], [], []
-    for p in range(scene.n_patches):
-        m, n = int(scene.degree_u[p]), int(scene.degree_v[p])
-        g = scene.points[scene.point_start[p]:scene.point_start[p + 1]].reshape(n + 1, m + 1, 4)
+    per = cells * cells  # leaves of a patch, j (v) major
+    deg_u, deg_v = np.asarray(scene.degree_u), np.asarray(scene.degree_v)
+    du, dv = np.repeat(deg_u, per).astype(np.int32), np.repeat(deg_v, per).astype(np.int32)
+    starts = np.zeros(n * per + 1, np.int64)
+    np.cumsum((du + 1).astype(np.int64) * (dv + 1), out=starts[1:])
+    points = np.empty((starts[-1], 4))
+    for m, nv, idx in _degree_groups(deg_u, deg_v):  # all patches of one degree pair at once
+        g = _grids(scene.points, scene.point_start, idx, m, nv)
         rows = [np.concatenate([g[..., :3] * g[..., 3:], g[..., 3:]], axis=-1)]
         for _ in range(k):  # halve along v: rows of sub-grids, bottom to top
-            rows = [h for r in rows for h in halve(r, 0)]
+            rows = [h for r in rows for h in halve(r, V)]
         for j, row in enumerate(rows):
             cols = [row]
             for _ in range(k):
-                cols = [h for c in cols for h in halve(c, 1)]
+                cols = [h for c in cols for h in halve(c, U)]
             for i, q in enumerate(cols):
-                e = np.concatenate([q[..., :3] / q[..., 3:], q[..., 3:]], axis=-1).reshape(-1, 4)
-                points.append(e)
-                starts.append(starts[-1] + len(e))
-                du.append(m)
-                dv.append(n)
-                rat.append(scene.rational[p])
-                owner.append(p)
-                param.append((i / cells, (i + 1) / cells, j / cells, (j + 1) / cells))
-    return (np.concatenate(points), np.asarray(starts, np.int64), np.asarray(du, np.int32),
-            np.asarray(dv, np.int32), np.asarray(rat, bool), np.asarray(owner, np.int32), np.asarray(param))
+                e = np.concatenate([q[..., :3] / q[..., 3:], q[..., 3:]], axis=-1).reshape(len(idx), -1, 4)
+                first = starts[idx * per + j * cells + i]
+                points[first[:, None] + np.arange(e.shape[1])] = e
+    i, j = np.tile(np.arange(cells), cells), np.repeat(np.arange(cells), cells)
+    param = np.tile(np.column_stack([i / cells, (i + 1) / cells, j / cells, (j + 1) / cells]), (n, 1))
+    return (points, starts, du, dv, np.repeat(np.asarray(scene.rational, bool), per),
+            np.repeat(np.arange(n, dtype=np.int32), per), param)
 
 
 def prepare(scene, precision: str = "f32", presplit: int | None = None) -> Geometry:
@@ -181,34 +200,20 @@ def prepare(scene, precision: str = "f32", presplit: int | None = None) -> Geome
     xyz = all_points[:, :3]
     weight = all_points[:, 3:4]
     patch_of_point = np.repeat(np.arange(n), np.diff(start))
-    lo = np.full((n, 3), np.inf)
-    hi = np.full((n, 3), -np.inf)
-    np.minimum.at(lo, patch_of_point, xyz)
-    np.maximum.at(hi, patch_of_point, xyz)
+    lo, hi = _per_leaf(np.minimum, xyz, start), _per_leaf(np.maximum, xyz, start)
     frame = (0.5 * (lo + hi)).astype(np.float32).astype(np.float64)
     local = xyz - frame[patch_of_point]
     homogeneous = np.hstack([local * weight, weight])
     ctrl64 = np.ascontiguousarray(homogeneous.T)
     ctrl = ctrl64 if dtype == np.float64 else np.ascontiguousarray(ctrl64.astype(dtype))
     stored = ctrl.T.astype(np.float64)
-    eps = _rounding_bounds(local, weight, stored, patch_of_point, n)
-    eps64 = _rounding_bounds(local, weight, homogeneous, patch_of_point, n)
+    eps = _rounding_bounds(local, weight, stored, start)
+    eps64 = _rounding_bounds(local, weight, homogeneous, start)
     if k:  # the float64 pre-split rounded too: a few ulps of the world coordinates
-        split_err = np.zeros((n, 3))
-        np.maximum.at(split_err, patch_of_point, np.abs(xyz) * (k + 1) * 2.0 ** -52)
+        split_err = _per_leaf(np.maximum, np.abs(xyz) * (k + 1) * 2.0 ** -52, start)
         eps = eps + split_err
         eps64 = eps64 + split_err
-    boxes = np.zeros((n, 6))
-    for p in range(n):
-        a, b = start[p], start[p + 1]
-        m, kv = int(deg_u[p]), int(deg_v[p])
-        grid = stored[a:b].reshape(kv + 1, m + 1, 4)
-        box = tight_box(grid)
-        # Kernel boxes are widened by eps and the subdivision's rounding bound (intersect._widen).
-        magnitude = np.abs(grid[..., :3] / grid[..., 3:]).max()
-        pad = eps[p] + magnitude * 2.0 ** (9 - bits) + np.finfo(np.float64).tiny
-        boxes[p, :3] = box[:3] - pad + frame[p]
-        boxes[p, 3:] = box[3:] + pad + frame[p]
+    boxes = _leaf_boxes(stored, start, deg_u, deg_v, eps, frame, bits)
     grid = grid_steps(boxes, bits)
     patch_trim, trim_arrays = _trim_arrays(scene)
     domain = np.asarray(scene.patch_domain, np.float64)[leaf_patch]
@@ -221,6 +226,20 @@ def prepare(scene, precision: str = "f32", presplit: int | None = None) -> Geome
                     np.asarray(rational, np.int8), frame, grid, eps, ctrl64, eps64, boxes, build_bvh(boxes),
                     np.ascontiguousarray(leaf_domain), patch_trim[leaf_patch], trim_arrays,
                     leaf_patch, np.ascontiguousarray(leaf_param, np.float64), k)
+
+
+def _leaf_boxes(stored, start, deg_u, deg_v, eps, frame, bits: int) -> np.ndarray:
+    """(n_leaves, 6) world boxes: each leaf's tight_box of its stored points, padded as the kernel
+    widens boxes (by eps and the subdivision's rounding bound, subpatch.widen)."""
+    boxes = np.zeros((len(deg_u), 6))
+    for m, n, idx in _degree_groups(deg_u, deg_v):  # all leaves of one degree pair at once
+        grid = _grids(stored, start, idx, m, n)
+        box = tight_box(grid)
+        magnitude = np.abs(grid[..., :3] / grid[..., 3:]).max(axis=(1, 2, 3))
+        pad = eps[idx] + magnitude[:, None] * 2.0 ** (9 - bits) + np.finfo(np.float64).tiny
+        boxes[idx, :3] = box[:, :3] - pad + frame[idx]
+        boxes[idx, 3:] = box[:, 3:] + pad + frame[idx]
+    return boxes
 
 
 def grid_steps(boxes: np.ndarray, bits: int) -> np.ndarray:
@@ -262,19 +281,20 @@ def _trim_arrays(scene):
     return patch_trim, arrays
 
 
-def _rounding_bounds(local, weight, stored, patch_of_point, n):
+def _per_leaf(ufunc, values, start):
+    """ufunc (np.minimum or np.maximum) over each leaf's points: values (total points, ...) with
+    leaf p's at start[p]:start[p + 1] (never empty)."""
+    return ufunc.reduceat(values, start[:-1], axis=0)
+
+
+def _rounding_bounds(local, weight, stored, start):
     """Per patch and axis, a bound on how far the surface of the stored (rounded) points lies
     from the true one: the largest error of a stored Euclidean point, plus, for rational
     patches, what rounded weights can move a convex combination (2 du diameter)."""
     euclid = stored[:, :3] / stored[:, 3:]
     point_err = np.abs(euclid - local) + np.abs(local) * 2.0 ** -52
     weight_err = np.abs(stored[:, 3:] - weight) / weight
-    eps = np.zeros((n, 3))
-    np.maximum.at(eps, patch_of_point, point_err)
-    lo = np.full((n, 3), np.inf)
-    hi = np.full((n, 3), -np.inf)
-    np.minimum.at(lo, patch_of_point, local)
-    np.maximum.at(hi, patch_of_point, local)
-    wmax = np.zeros(n)
-    np.maximum.at(wmax, patch_of_point, weight_err[:, 0] + 2.0 ** -52)
+    eps = _per_leaf(np.maximum, point_err, start)
+    lo, hi = _per_leaf(np.minimum, local, start), _per_leaf(np.maximum, local, start)
+    wmax = _per_leaf(np.maximum, weight_err[:, 0] + 2.0 ** -52, start)
     return eps + 4.0 * wmax[:, None] * (hi - lo)

@@ -15,12 +15,30 @@ SAMPLES_DIR = Path(__file__).resolve().parents[1] / "sample_models"
 
 
 def patch_types(scene) -> list:
-    """["32 bicubic", "1 bilinear", ...]: patch counts by degree (and rationality)."""
+    """["32 bicubic", "1 bilinear", ...]: patch counts by degree (and rationality), most first
+    (ties in order of first appearance)."""
     kinds = Counter()
-    for m, n, r in zip(scene.degree_u, scene.degree_v, scene.rational):
-        name = DEGREE_NAMES.get((int(m), int(n)), f"degree {m}x{n}")
-        kinds["rational " + name if r else name] += 1
+    triples = np.column_stack([scene.degree_u, scene.degree_v, scene.rational]).astype(np.int64)
+    found, first, counts = np.unique(triples, axis=0, return_index=True, return_counts=True)
+    for i in np.argsort(first, kind="stable"):  # one entry per kind, not per patch
+        m, n, r = (int(x) for x in found[i])
+        name = DEGREE_NAMES.get((m, n), f"degree {m}x{n}")
+        kinds["rational " + name if r else name] += int(counts[i])
     return [f"{count} {name}" for name, count in kinds.most_common()]
+
+
+_SUMMARY = [None, None]  # the last scene drawn and its summary
+
+
+def scene_summary(scene) -> dict:
+    """What the panel shows about a scene that takes work over all its patches (types, counts,
+    bounds): computed once per scene, not every frame (a scene is not changed once loaded)."""
+    if _SUMMARY[0] is not scene:
+        lo, hi = scene.bounds()
+        _SUMMARY[:] = scene, {"types": f"{scene.n_patches} patches: {', '.join(patch_types(scene))}",
+                              "counts": count_lines(scene_counts(scene)),
+                              "bounds": f"bounds {np.array2string(lo, precision=3)} .. {np.array2string(hi, precision=3)}"}
+    return _SUMMARY[1]
 
 
 def sample_files(directory: Path = SAMPLES_DIR) -> list:
@@ -54,7 +72,7 @@ def _rows(rows) -> None:
 
 def ui_surfaces(scene) -> None:
     """Surface types with counts, and each free-form file's import report."""
-    for line in count_lines(scene_counts(scene)):
+    for line in scene_summary(scene)["counts"]:
         imgui.bullet()  # then the text on the same line, wrapped at the panel's edge
         imgui.text_wrapped(line)
     for source, report in scene.import_report.items():
@@ -85,10 +103,9 @@ def ui_scene(state) -> bool:
         imgui.text_disabled("no scene loaded")
         return asked
     imgui.text_wrapped(f"{state.scene_path}")
-    imgui.text_wrapped(f"{scene.n_patches} patches: {', '.join(patch_types(scene))}")
+    imgui.text_wrapped(scene_summary(scene)["types"])
     ui_surfaces(scene)
-    lo, hi = scene.bounds()
-    imgui.text(f"bounds {np.array2string(lo, precision=3)} .. {np.array2string(hi, precision=3)}")
+    imgui.text(scene_summary(scene)["bounds"])
     if imgui.tree_node(f"{len(scene.objects)} objects, {len(scene.lights)} lights"):
         for obj in scene.objects:
             mat = scene.materials[obj.material].name if obj.material < len(scene.materials) else "?"
