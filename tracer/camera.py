@@ -50,7 +50,8 @@ def framing_view(lo, hi, fov_deg: float = 35.0, direction=(0.55, -0.8, 0.45), up
     """A view of the box [lo, hi] that fits its bounding sphere in the field of view."""
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     centre = 0.5 * (lo + hi)
-    radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-9)
+    radius = 0.5 * float(np.linalg.norm(hi - lo))
+    radius = radius if radius > 0 else 1e-9  # a point; a floor for small scenes would lose them (limits.py)
     distance = radius / math.sin(math.radians(fov_deg) / 2.0)
     d = np.asarray(direction, float)
     eye = centre + d / np.linalg.norm(d) * distance

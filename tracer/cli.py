@@ -16,6 +16,7 @@ from dataclasses import asdict, replace
 from pathlib import Path
 
 from . import memory
+from .limits import check_extent
 from .options import CRITERIA, PRECISIONS, SPLITS, Options, option_fields, parse_assignment
 from .output_files import STDOUT, OutputFiles
 from .record import quote, read_value
@@ -218,6 +219,8 @@ def cmd_render(args) -> int:
     with outs:  # every output replaces its file at the end, or none does
         scene = load_inputs(outs, args.scene)
         _import_losses(args, scene)
+        for warning in check_extent(scene, opts.precision):  # what it cannot bound raises, before any work
+            print(f"psrt {args.command}: warning: {warning}", file=sys.stderr)
         width, height = args.size or scene.image_size or (512, 512)
         needs_ref = bool(args.error_map or args.stats or any(CHANNELS[name].needs_reference for name in maps))
         memory.check_render(width, height, reference=needs_ref, limit=args.memory_limit)
@@ -261,6 +264,8 @@ def cmd_trace(args) -> int:
     with outs:
         scene = load_inputs(outs, args.scene)
         _import_losses(args, scene)
+        for warning in check_extent(scene, opts.precision):  # what it cannot bound raises, before any work
+            print(f"psrt {args.command}: warning: {warning}", file=sys.stderr)
         x, y = args.pixel
         tr = trace_pixel(scene, opts, x, y, size=args.size)
         _write_json(outs, tr.to_json(), output)

@@ -2,7 +2,7 @@
 
 Each scene patch is pre-split (in float64; its rounding joins eps) into leaves, and control
 points are stored relative to one frame origin per leaf (the centre of its
-control-point box, a float32 number), so they round relative to the leaf's
+control-point box, a float32 number where float32 reaches), so they round relative to the leaf's
 own extent instead of its distance from the world origin. The exact
 rounding error of the stored points is measured here (`eps`, per patch and
 axis); the kernel widens every box by it, so boxes contain the true surface
@@ -15,11 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bvh import Bvh, build_bvh
+from .limits import PRECISION_BITS, check_extent, check_weights, spacing, weight_scale
 from .subpatch import max_depth_for
 from .trim_kernel import segment_boxes
 
 PRECISION_DTYPE = {"f32": np.float32, "f64": np.float64}
-PRECISION_BITS = {"f32": 24, "f64": 53}
 
 
 @dataclass(frozen=True)
@@ -187,21 +187,24 @@ def _leaves(scene, k: int):
 def prepare(scene, precision: str = "f32", presplit: int | None = None) -> Geometry:
     """Kernel arrays for a loaded scene (tracer.scene.Scene) in the given precision.
 
-    presplit: pre-split levels (None: `auto_presplit`); 0 keeps the scene's patches as they are."""
+    presplit: pre-split levels (None: `auto_presplit`); 0 keeps the scene's patches as they are.
+    A scene the precision cannot bound or resolve is a SceneError (limits.check_extent and
+    check_weights; the warnings are the CLI's to print)."""
     if precision not in PRECISION_DTYPE:
         raise ValueError(f"precision must be one of {', '.join(PRECISION_DTYPE)}, got {precision!r}")
     if scene.n_patches == 0:
         raise ValueError(f"{scene.path or 'scene'}: no patches to render")
+    check_extent(scene, precision)
     k = auto_presplit(scene.n_patches) if presplit is None else int(presplit)
     all_points, start, deg_u, deg_v, rational, leaf_patch, leaf_param = _leaves(scene, k)
     dtype = PRECISION_DTYPE[precision]
     bits = PRECISION_BITS[precision]
     n = len(deg_u)
     xyz = all_points[:, :3]
-    weight = all_points[:, 3:4]
     patch_of_point = np.repeat(np.arange(n), np.diff(start))
+    weight = _weights(scene, all_points[:, 3], start, patch_of_point, leaf_patch, precision)
     lo, hi = _per_leaf(np.minimum, xyz, start), _per_leaf(np.maximum, xyz, start)
-    frame = (0.5 * (lo + hi)).astype(np.float32).astype(np.float64)
+    frame = _frames(lo, hi)
     local = xyz - frame[patch_of_point]
     homogeneous = np.hstack([local * weight, weight])
     ctrl64 = np.ascontiguousarray(homogeneous.T)
@@ -256,12 +259,7 @@ def grid_steps(boxes: np.ndarray, bits: int) -> np.ndarray:
     magnitude = np.maximum(np.abs(boxes[:, :3]), np.abs(boxes[:, 3:]))
     half_extent = 0.5 * float(np.max(boxes[:, 3:].max(axis=0) - boxes[:, :3].min(axis=0)))
     tiniest = 2.0 ** (-126 - bits)  # below every positive working-precision number
-    return np.minimum(_spacing(np.maximum(magnitude, tiniest), bits), _spacing(max(half_extent, tiniest), bits))
-
-
-def _spacing(x, bits: int):
-    """Spacing of `bits`-bit floats at x > 0 (a power of two)."""
-    return np.ldexp(1.0, np.frexp(x)[1] - bits)
+    return np.minimum(spacing(np.maximum(magnitude, tiniest), bits), spacing(max(half_extent, tiniest), bits))
 
 
 def _trim_arrays(scene):
@@ -279,6 +277,25 @@ def _trim_arrays(scene):
     arrays = (seg_points, seg_start, np.asarray(trims.surf_seg_start, np.int64),
               np.asarray(trims.start_inside, np.int8), segment_boxes(seg_points, seg_start))
     return patch_trim, arrays
+
+
+def _frames(lo, hi):
+    """Each leaf's frame origin: the centre of its control box rounded to float32; outside float32's
+    normal numbers (only a float64 scene gets there, limits.check_extent) the float64 centre."""
+    centre = 0.5 * (lo + hi)
+    with np.errstate(over="ignore"):
+        frame = centre.astype(np.float32).astype(np.float64)
+    normal32 = np.isfinite(frame) & ((np.abs(centre) >= np.finfo(np.float32).tiny) | (centre == 0))
+    return np.where(normal32, frame, centre)
+
+
+def _weights(scene, w, start, patch_of_point, leaf_patch, precision):
+    """(total points, 1) the weights the leaves are stored with: checked (limits.check_weights) and
+    scaled by a power of two per leaf where they lie far from 1 (limits.weight_scale)."""
+    wmin, wmax = _per_leaf(np.minimum, w, start), _per_leaf(np.maximum, w, start)
+    check_weights(scene, wmin, wmax, leaf_patch, precision)
+    scale = weight_scale(wmax)
+    return (w if np.all(scale == 1.0) else w * scale[patch_of_point])[:, None]
 
 
 def _per_leaf(ufunc, values, start):

@@ -279,7 +279,11 @@ def _assemble(label, objs, materials, lights, camera, image) -> Scene:
             reports[o.source] = o.model.report
         lin, shift = o.transform[:3, :3], o.transform[:3, 3]
         p = o.patches
-        xyz = p.points[:, :3] @ lin.T + shift  # transform the Euclidean points, keep w
+        with np.errstate(over="ignore", invalid="ignore"):
+            xyz = p.points[:, :3] @ lin.T + shift  # transform the Euclidean points, keep w
+        if not np.all(np.isfinite(xyz)):
+            raise SceneError(f"the transform takes control points past float64's largest number, "
+                             f"{np.finfo(np.float64).max:.3g}", key=f"objects[{oi}].transform")
         parts.append(dataclasses.replace(p, points=np.column_stack([xyz, p.points[:, 3]])))
         pobj.append(np.full(len(p), oi, np.int32))
         pmat.append(np.full(len(p), mi, np.int32))
