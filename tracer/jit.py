@@ -19,7 +19,7 @@ from functools import lru_cache
 from pathlib import Path
 
 import numba
-from numba.core.caching import FunctionCache
+from numba.core.caching import FunctionCache, IndexDataCacheFile
 from numba.core.registry import CPUDispatcher
 
 PACKAGE = Path(__file__).resolve().parent
@@ -135,13 +135,20 @@ def specialise(template, **constants):
     kernels named there are called (or inlined) directly.
 
     Globals, not a closure: numba deep-copies a closure's cell contents each time it inlines
-    the function, and a kernel held in a cell drags its whole compiled library along."""
+    the function, and a kernel held in a cell drags its whole compiled library along.
+
+    Each copy's qualified name carries its key. numba names machine code by qualified name,
+    argument types and a counter that is only unique within one process, and links a callee
+    into each caller as a "one definition" symbol: two variants of the search cached by
+    different processes under the same counter value had one symbol name, and a process that
+    loaded both ran one variant's search for the other (an f32 trace, then a rational render:
+    2 hits where there were 14)."""
     namespace = dict(template.__globals__)
     namespace.update(constants)
     func = types.FunctionType(template.__code__, namespace, template.__name__, template.__defaults__)
-    func.__qualname__ = template.__qualname__
     func.__doc__ = template.__doc__
     func.__psrt_constants__ = constants
+    func.__qualname__ = f"{template.__qualname__}__{function_key(func)[:16]}"
     return func
 
 
@@ -163,7 +170,28 @@ def function_key(func) -> str:
     return digest.hexdigest()
 
 
+class _KeyedDataFiles(IndexDataCacheFile):
+    """numba's index and data files, with each data file named by its entry's key instead of the
+    index's next free number: two processes saving different entries of one function at once
+    (the f32 and f64 kernels of a variant share a dispatcher) could give both the same number,
+    and the index kept by one could name the machine code written by the other. Now a race
+    can only lose an index entry (compiled again later). The data goes first, so the index never
+    names a file that is not there yet."""
+
+    def save(self, key, data):
+        data_name = f"{self._index_name[:-len('.nbi')]}.{hashlib.sha256(repr(key).encode()).hexdigest()[:24]}.nbc"
+        self._save_data(data_name, data)
+        overloads = self._load_index()
+        overloads[key] = data_name
+        self._save_index(overloads)
+
+
 class _KernelCache(FunctionCache):
+    def __init__(self, py_func):
+        super().__init__(py_func)
+        self._cache_file = _KeyedDataFiles(self._cache_path, self._impl.filename_base,
+                                           self._impl.locator.get_source_stamp())
+
     def _index_key(self, sig, codegen):
         module = sys.modules[self._py_func.__module__]
         return (sig, codegen.magic_tuple(), (function_key(self._py_func), dependency_key(Path(module.__file__))))
