@@ -166,3 +166,27 @@ def test_a_fresh_process_loads_the_kernels_from_the_cache():
                          timeout=600, check=True)
     report = json.loads(out.stdout.strip().splitlines()[-1])
     assert report and all(r["cached"] for r in report), report
+
+
+def test_a_box_budget_bounds_each_ray_and_marks_where_it_ran_out():
+    """The float64 reference's bound: a ray may compute `budget` boxes; one that needed fewer is
+    untouched, one that needed more stops there (a box or two over) and is marked unresolved."""
+    from tracer.records import BUDGET_FLOOR
+    from tracer.render import trace_rays
+    scene = _scene("teapot")
+    geom = prepare(scene, "f64")
+    view = view_of(scene)
+    origins, dirs = primary_rays(view, 24, 24, "f64")
+    opts = Options(precision="f64")
+    free = trace_rays(geom, opts, origins, dirs, 0.0)
+    budget = 200
+    cut = trace_rays(geom, opts, origins, dirs, 0.0,
+                     budget=(budget / BUDGET_FLOOR, np.zeros(free.hit.shape, np.int32)))
+    under = free.effort < budget
+    over = free.effort > budget + 1
+    assert under.any() and over.any() and not free.unresolved.any()
+    assert cut.unresolved[over].all() and not cut.unresolved[under].any()
+    assert cut.effort.max() <= budget + 2
+    for name in CHANNEL_NAMES:
+        if name != "unresolved":
+            assert np.array_equal(getattr(cut, name)[under], getattr(free, name)[under], equal_nan=True), name

@@ -55,10 +55,13 @@ def scene_stub(lights=()):
 
 def naive_error_stats(frame, ref):
     errs, floors, inside, in_box = [], [], [], []
-    holes = false_hits = 0
+    holes = false_hits = unresolved = 0
     h, w = frame.hit.shape
     for y in range(h):
         for x in range(w):
+            if ref.unresolved[y, x]:  # the reference does not know: nothing to score
+                unresolved += 1
+                continue
             a, b = frame.hit[y, x], ref.hit[y, x]
             holes += bool(b and not a)
             false_hits += bool(a and not b)
@@ -78,7 +81,7 @@ def naive_error_stats(frame, ref):
     return {"holes": holes, "false_hits": false_hits, "max": max(errs), "min": min(errs), "mean": mean,
             "variance": sum((e - mean) ** 2 for e in errs) / len(errs), "floor": sum(floors) / len(floors),
             "inside_box": sum(in_box) / len(in_box), "inside_4ulp": sum(inside) / len(inside),
-            "compared": len(errs)}
+            "compared": len(errs), "unresolved": unresolved}
 
 
 def test_error_stats_matches_naive_reference():
@@ -89,9 +92,12 @@ def test_error_stats_matches_naive_reference():
     frame.hit[5, 0] = False          # a hole
     frame.hit[0, 0] = True           # a false hit
     frame.box_min[4, 4] = frame.box_max[4, 4] = ref.position[4, 4] + 1e-3  # box misses the reference
+    frame.hit[3, 1] = False
+    frame.position[2, 2] += 5.0
+    ref.unresolved[3, 1] = ref.unresolved[2, 2] = ref.unresolved[1, 3] = True  # out of budget: not scored
     got = stats.error_stats(frame, ref)
     want = naive_error_stats(frame, ref)
-    assert got["holes"] == 1 and got["false_hits"] == 1
+    assert got["holes"] == 1 and got["false_hits"] == 1 and got["unresolved"] == 3 and got["max"] < 1e-5
     for key, value in want.items():
         assert got[key] == pytest.approx(value, rel=1e-12, abs=0), key  # same sums, float64 rounding only
     assert got["ratio"] == pytest.approx(want["mean"] / want["floor"], rel=1e-12)
@@ -153,8 +159,11 @@ def test_error_channel_marks_holes_and_false_hits():
     frame = copy_frame(ref)
     frame.hit[5, 0] = False
     frame.hit[0, 0] = True
+    frame.hit[4, 1] = False
+    ref.unresolved[4, 1] = True
     rgb, _ = stats.channel_rgb("error", frame, ref)
     assert tuple(rgb[5, 0]) == stats.HOLE_RGB and tuple(rgb[0, 0]) == stats.FALSE_HIT_RGB
+    assert tuple(rgb[4, 1]) == stats.UNRESOLVED_RGB  # not a hole: the reference ran out of budget there
     with pytest.raises(ValueError, match="reference"):
         stats.channel_rgb("error", frame)
     img = stats.channel_image("error", frame, ref, legend_width=300)

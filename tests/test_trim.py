@@ -214,3 +214,36 @@ def test_fit_cubics_within_tolerance():
     bern = np.column_stack([(1 - r) ** 3, 3 * r * (1 - r) ** 2, 3 * r * r * (1 - r), r ** 3])
     worst = max(np.abs(bern @ c - f(s0 + r * (s1 - s0))).max() for s0, s1, c in pieces)
     assert worst < 2e-11
+
+
+def test_rect_meets_loops_is_exact_enough_and_conservative():
+    """The sub-patch classification: a rectangle the curves are said to miss holds no curve point
+    (dense Bernstein samples) and is on one side of every loop (the reference parity at many of
+    its points); rectangles far smaller than the segments' control boxes are decided, where the
+    boxes alone kept every one near a curve undecided."""
+    from tracer.trim_kernel import rect_meets_loops, segment_boxes, trim_scratch
+    ts = build_trimset([[polygon(SQUARE, "trim"), circle(0.3, 0.6, 0.2, "hole"), circle(0.7, 0.3, 0.12, "hole")]])
+    boxes = segment_boxes(ts.seg_points, ts.seg_start)
+    stack_h, stack_m = trim_scratch(8)
+    curve = np.concatenate([sample_segment(ts.seg_points[ts.seg_start[s]:ts.seg_start[s + 1]], 400)
+                            for s in range(len(ts.seg_start) - 1)])
+    rng = np.random.default_rng(7)
+    decided_near = 0
+    for _ in range(600):
+        size = 10.0 ** rng.uniform(-9, -1)
+        u0, v0 = rng.uniform(-0.05, 1.0, 2)
+        u1, v1 = u0 + size * rng.uniform(0.3, 1.0), v0 + size * rng.uniform(0.3, 1.0)
+        meets = rect_meets_loops(0, u0, u1, v0, v1, ts.seg_points, ts.seg_start, ts.surf_seg_start, boxes,
+                                 stack_h, stack_m)
+        if meets:
+            continue
+        assert not np.any((curve[:, 0] >= u0) & (curve[:, 0] <= u1) & (curve[:, 1] >= v0) & (curve[:, 1] <= v1))
+        sides = {inside(ts, 0, u, v) for u, v in zip(rng.uniform(u0, u1, 6), rng.uniform(v0, v1, 6))}
+        assert len(sides) == 1, (u0, u1, v0, v1)
+        by_boxes = np.any((boxes[:, 1] >= u0) & (boxes[:, 0] <= u1) & (boxes[:, 3] >= v0) & (boxes[:, 2] <= v1))
+        decided_near += bool(by_boxes)
+    assert decided_near > 50  # the segments' boxes alone would have left these undecided
+    # A rectangle on the circle is met, however small.
+    u, v = 0.3 + 0.2, 0.6
+    assert rect_meets_loops(0, u - 1e-12, u + 1e-12, v - 1e-12, v + 1e-12, ts.seg_points, ts.seg_start,
+                            ts.surf_seg_start, boxes, stack_h, stack_m)

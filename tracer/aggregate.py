@@ -4,7 +4,8 @@ An aggregate kind has a record of flat arrays (built once per scene) and a walk 
 make_walk(search, any_hit) -> walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts),
 that visits the nodes the ray meets in near-to-far order and hands every patch of a visited
 leaf to the patch search (drivers.make_search), sharing the shrinking ray interval with it.
-The closest-hit walk runs to the end; the any-hit walk stops at the first hit. counts
+The closest-hit walk runs to the end; the any-hit walk stops at the first hit; both stop
+when the ray's box budget (ray[R_BUDGET]) runs out, setting counts[C_UNRESOLVED]. counts
 (records.C_*) gain the boxes the searches computed, the nodes visited and the patches
 searched. The kind is fixed at compile time (variants.Variant.accel): a kd-tree or a
 uniform grid is another record and another make_walk here, with no change to the drivers
@@ -20,8 +21,8 @@ from collections import namedtuple
 import numpy as np
 
 from .jit import njit, specialise
-from .ray import H_TIN, slab
-from .records import C_EFFORT, C_NODES, C_PATCHES
+from .ray import H_TIN, R_BUDGET, slab
+from .records import C_EFFORT, C_NODES, C_PATCHES, C_UNRESOLVED
 
 BvhNodes = namedtuple("BvhNodes", "node_box node_child leaf_first leaf_count items")
 # The walk's fixed stack: node indices and their entry t.
@@ -62,7 +63,12 @@ def _bvh_walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts):
             first = agg.leaf_first[node]
             for k in range(first, first + agg.leaf_count[node]):
                 counts[C_PATCHES] += 1
-                counts[C_EFFORT] += search(agg.items[k], lv, trims, ray, hit, q, sl, trace)  # noqa: F821
+                spent = search(agg.items[k], lv, trims, ray, hit, q, sl, trace)  # noqa: F821
+                counts[C_EFFORT] += spent
+                if spent >= ray[R_BUDGET]:  # the budget ran out in this search: stop here
+                    counts[C_UNRESOLVED] = 1
+                    return
+                ray[R_BUDGET] -= spent
             if STOP_AT_FIRST and hit[H_TIN] < t_max:  # noqa: F821
                 return
             continue

@@ -76,7 +76,7 @@ def _fmt(x, spec=".2e") -> str:
 
 
 COLUMNS = [("criterion", 9), ("split", 6), ("prec", 4), ("time s", 7), ("Mrays/s", 7),
-           ("effort/hit", 10), ("mean err", 9), ("max err", 9), ("holes", 5), ("false", 5),
+           ("effort/hit", 10), ("mean err", 9), ("max err", 9), ("holes", 5), ("false", 5), ("unres", 5),
            ("err/floor", 9), ("in box %", 8), ("in 4ulp %", 9)]
 
 
@@ -88,12 +88,13 @@ def format_table(result: dict) -> str:
         e = r["error"]
         cells = [r["criterion"], r["split"], r["precision"], f"{r['time']:.3f}",
                  _fmt(r["rays_per_s"] and r["rays_per_s"] / 1e6, ".2f"), _fmt(r["effort_mean_hits"], ".1f"),
-                 _fmt(e["mean"]), _fmt(e["max"]), str(e["holes"]), str(e["false_hits"]),
+                 _fmt(e["mean"]), _fmt(e["max"]), str(e["holes"]), str(e["false_hits"]), str(e["unresolved"]),
                  _fmt(e["ratio"], ".2f"), _fmt(e["inside_box"] and 100 * e["inside_box"], ".2f"),
                  _fmt(e["inside_4ulp"] and 100 * e["inside_4ulp"], ".3f")]
         lines.append("  ".join(f"{c:>{w}}" if i > 2 else f"{c:<{w}}"
                                for i, (c, (_, w)) in enumerate(zip(cells, COLUMNS))))
     w, h = result["size"]
     lines.append(f"{w}x{h} primary rays, median of {result['runs']} run(s) after a warm-up; "
-                 "errors are L1 against the float64 float-criterion render of the same rays")
+                 "errors are L1 against the float64 float-criterion render of the same rays (unres: pixels "
+                 "where it ran out of its box budget, left out)")
     return "\n".join(lines)

@@ -324,7 +324,7 @@ def add_commands(sub) -> None:
     p.add_argument("--effort-map", metavar="PNG", help="box tests per ray on a colour map with a legend")
     p.add_argument("--error-map", metavar="PNG",
                    help="L1 position error against the float64 reference of the same rays (holes red, "
-                        "false hits magenta)")
+                        "false hits magenta, pixels the reference could not resolve within its box budget orange)")
     p.add_argument("--map", action="append", default=[], type=parse_map, metavar="CHANNEL=PNG",
                    help="any per-pixel channel on a colour map with a legend, e.g. nodes=nodes.png "
                         f"(repeatable; channels: {', '.join(CHANNELS)})")

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from .jit import njit, specialise
 
-from .ray import H_TIN
+from .ray import H_TIN, R_BUDGET
 from .search_steps import HIT, MISS, PRUNED, accept, enter_frame, judge, open_child, report, root, set_event
 from .search_steps import subdivide, tighten, trace_hit, trim_state
 from .subpatch import M_TIN, patch_info
@@ -28,8 +28,9 @@ def _search(p, lv, trims, ray, hit, q, sl, trace):
     lray = enter_frame(sl, ray, lv, p)
     s = root(sl, pa, lv)
     effort = 1
+    budget = ray[R_BUDGET]
     sp = open_child(sl, s, pa, lv, lray, hit[H_TIN], trace, TRACING)  # noqa: F821
-    while sp > 0:
+    while sp > 0 and effort < budget:
         sp -= 1
         a = sl.order[sp]
         if sl.mf[a, M_TIN] >= hit[H_TIN]:
@@ -62,7 +63,7 @@ def _search(p, lv, trims, ray, hit, q, sl, trace):
 def make_search(variant, any_hit: bool):
     """The patch search of one variant: search(p, lv, trims, ray, hit, q, sl, trace) -> boxes
     computed; updates `hit` when it finds a hit box before hit[H_TIN] (any_hit: the first one
-    found, then it stops). lv: records.Leaves, trims: records.Trims, q: records.Query,
+    found, then it stops). It stops, too, once it has computed ray[R_BUDGET] boxes. lv: records.Leaves, trims: records.Trims, q: records.Query,
     sl: records.Slots, trace: records.Trace (written only by tracing variants)."""
     search = specialise(_search, HAS_RATIONAL=variant.rational, HAS_CUBIC=variant.cubic,
                         HAS_LINEAR=variant.linear, HAS_GENERAL=variant.general or variant.rational,

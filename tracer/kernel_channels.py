@@ -42,6 +42,8 @@ KERNEL_CHANNELS = (
                   label="nodes visited", units="nodes"),
     KernelChannel("patches_tested", np.int32, (), 0, "patches whose bounds the primary ray met and whose search "
                   "was started", counter=True, label="patches tested", units="patches"),
+    KernelChannel("unresolved", bool, (), False, "the ray's box budget ran out (renders given one: the float64 "
+                  "reference): its hit, or miss, is not known to be the closest"),
 )
 CHANNEL_NAMES = tuple(c.name for c in KERNEL_CHANNELS)
 COUNTERS = tuple(c for c in KERNEL_CHANNELS if c.counter)

@@ -6,9 +6,10 @@ import math
 from .jit import njit
 
 # Ray record: origin, direction, 1/direction, t_min, threshold of detail T(t) = T0 + dT*t,
-# and the unit normals of two orthogonal planes that meet in the ray (for hull tests).
-R_O, R_D, R_INV, R_TMIN, R_T0, R_DT, R_N1, R_N2 = 0, 3, 6, 9, 10, 11, 12, 15
-RAY_LEN = 18
+# the unit normals of two orthogonal planes that meet in the ray (for hull tests), and the boxes
+# its searches may still compute (inf: no budget; the float64 reference's bound).
+R_O, R_D, R_INV, R_TMIN, R_T0, R_DT, R_N1, R_N2, R_BUDGET = 0, 3, 6, 9, 10, 11, 12, 15, 18
+RAY_LEN = 19
 # Hit record: entry/exit t of the hit box, world box, (u, v), patch, depth, interval sizes.
 H_TIN, H_TOUT, H_LO, H_HI, H_U, H_V, H_PATCH, H_DEPTH, H_DU, H_DV = 0, 1, 2, 5, 8, 9, 10, 11, 12, 13
 HIT_LEN = 14
@@ -40,6 +41,7 @@ def make_ray(ray, ox, oy, oz, dx, dy, dz, t_min, t0, dt):
     ray[R_TMIN] = t_min
     ray[R_T0] = t0
     ray[R_DT] = dt
+    ray[R_BUDGET] = math.inf
     # n1 = d x (axis of d's smallest component), n2 = d x n1, both normalised.
     ax = 0
     if abs(dy) < abs(dx) and abs(dy) <= abs(dz):

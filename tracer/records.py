@@ -33,8 +33,10 @@ PatchInfo = namedtuple("PatchInfo", "p m n count start rational cubic linear bit
                        "sub_scale round_unit shrink_factor")
 
 # What a search is asked: the criterion code and its parameter, split heuristic, depth cap,
-# mantissa bits of the working dtype.
-Query = namedtuple("Query", "criterion param split_mode max_depth bits")
+# mantissa bits of the working dtype; and a box budget per ray (the float64 reference's
+# bound): budget_factor times max(budget_base[y, x], BUDGET_FLOOR) boxes, none if the factor is 0.
+Query = namedtuple("Query", "criterion param split_mode max_depth bits budget_factor budget_base")
+BUDGET_FLOOR = 256
 
 # The sub-patch stack of one thread, S = max depth + 2 slots (see subpatch.py for columns):
 # buf (S, 4, P) working dtype, box (S, 6), mf (S, MF_LEN), mi (S, MI_LEN) int32,
@@ -42,9 +44,10 @@ Query = namedtuple("Query", "criterion param split_mode max_depth bits")
 # w64 (4, P) float64 for re-derivation; trim_h, trim_m: the trim parity's curve stack.
 Slots = namedtuple("Slots", "buf box mf mi order lray w64 trim_h trim_m")
 
-# Per ray counters the drivers and aggregates add to (int64 array of COUNTER_LEN).
-C_EFFORT, C_NODES, C_PATCHES = 0, 1, 2
-COUNTER_LEN = 3
+# Per ray counters the drivers and aggregates add to (int64 array of COUNTER_LEN); C_UNRESOLVED
+# is 1 where the ray's box budget ran out (its hit, if any, need not be the closest).
+C_EFFORT, C_NODES, C_PATCHES, C_UNRESOLVED = 0, 1, 2, 3
+COUNTER_LEN = 4
 
 # The subdivision trace of one ray: steps (k, TRACE_F) float64, (k, TRACE_I) int32, and
 # state [steps used, truncated, reported step]. Kernels built without tracing ignore it.

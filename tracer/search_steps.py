@@ -148,8 +148,8 @@ def trim_state(sl, a, pa, trims):
     mf = sl.mf
     u0, v0 = _domain_point(trims.domain, pa.p, mf[a, M_U0], mf[a, M_V0])
     u1, v1 = _domain_point(trims.domain, pa.p, mf[a, M_U1], mf[a, M_V1])
-    if rect_meets_loops(surface, min(u0, u1), max(u0, u1), min(v0, v1), max(v0, v1), trims.surf_seg_start,
-                        trims.seg_box):
+    if rect_meets_loops(surface, min(u0, u1), max(u0, u1), min(v0, v1), max(v0, v1), trims.seg_points,
+                        trims.seg_start, trims.surf_seg_start, trims.seg_box, sl.trim_h, sl.trim_m):
         return 0
     if trim_inside(surface, 0.5 * (u0 + u1), 0.5 * (v0 + v1), trims.seg_points, trims.seg_start,
                    trims.surf_seg_start, trims.start_inside, sl.trim_h, sl.trim_m):

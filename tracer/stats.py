@@ -21,6 +21,7 @@ from .shade import patch_colours
 
 HOLE_RGB = (1.0, 0.0, 0.0)
 FALSE_HIT_RGB = (1.0, 0.0, 1.0)
+UNRESOLVED_RGB = (1.0, 0.6, 0.0)
 ULP_SLACK = 4
 
 
@@ -61,9 +62,15 @@ def distance(frame) -> np.ndarray:
     return np.where(frame.hit, d, np.nan)
 
 
+def resolved(ref) -> np.ndarray:
+    """Where the reference's answer is known to be the closest (its box budget did not run out)."""
+    return ~ref.unresolved if ref.unresolved is not None else np.ones(ref.hit.shape, bool)
+
+
 def position_error(frame, ref) -> np.ndarray:
-    """L1 distance |frame.position - ref.position| where both hit, NaN elsewhere."""
-    both = frame.hit & ref.hit
+    """L1 distance |frame.position - ref.position| where both hit and the reference is resolved,
+    NaN elsewhere."""
+    both = frame.hit & ref.hit & resolved(ref)
     err = np.full(frame.hit.shape, np.nan)
     err[both] = np.sum(np.abs(frame.position[both] - ref.position[both]), axis=-1)
     return err
@@ -86,9 +93,11 @@ def _counter_specials(name, nothing):
 
 
 def _error_specials(frame, ref):
-    return [(ref.hit & ~frame.hit, HOLE_RGB, "hole: reference hit, this render missed"),
-            (frame.hit & ~ref.hit, FALSE_HIT_RGB, "false hit: this render hit, reference missed"),
-            (~frame.hit & ~ref.hit, BACKGROUND, "both missed")]
+    ok = resolved(ref)
+    return [(ref.hit & ~frame.hit & ok, HOLE_RGB, "hole: reference hit, this render missed"),
+            (frame.hit & ~ref.hit & ok, FALSE_HIT_RGB, "false hit: this render hit, reference missed"),
+            (~ok, UNRESOLVED_RGB, "unresolved: the reference ran out of its box budget"),
+            (~frame.hit & ~ref.hit & ok, BACKGROUND, "both missed")]
 
 
 def _box_size(frame, ref=None):
@@ -182,7 +191,8 @@ def ulp32(x) -> np.ndarray:
 def error_stats(frame, ref) -> dict:
     """Position accuracy of `frame` against `ref`, the float64 render of the same rays.
 
-    holes: ref hit, frame missed; false_hits: frame hit, ref missed. Over pixels both hit:
+    holes: ref hit, frame missed; false_hits: frame hit, ref missed; unresolved: pixels where the
+    reference's box budget ran out, left out of everything else. Over pixels both hit:
     the L1 position error's max/min/mean/variance (Dammertz table 2.1), the float32 floor
     (mean L1 error of merely rounding ref.position to float32), ratio = mean / floor, and
     inside_box: the fraction of those hits whose ref.position lies in the final box;
@@ -190,9 +200,10 @@ def error_stats(frame, ref) -> dict:
     """
     if frame.hit.shape != ref.hit.shape:
         raise ValueError(f"frame is {frame.hit.shape}, reference {ref.hit.shape}: not the same rays")
-    both = frame.hit & ref.hit
-    out = {"compared": int(both.sum()), "holes": int(np.sum(ref.hit & ~frame.hit)),
-           "false_hits": int(np.sum(frame.hit & ~ref.hit))}
+    ok = resolved(ref)
+    both = frame.hit & ref.hit & ok
+    out = {"compared": int(both.sum()), "holes": int(np.sum(ref.hit & ~frame.hit & ok)),
+           "false_hits": int(np.sum(frame.hit & ~ref.hit & ok)), "unresolved": int(np.sum(~ok))}
     if not both.any():
         return {**out, "max": None, "min": None, "mean": None, "variance": None, "floor": None,
                 "ratio": None, "inside_box": None, "inside_4ulp": None}

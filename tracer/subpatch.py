@@ -429,6 +429,8 @@ def split(sl, a, b, pa, direction, has_general):
             col = M_EH + c if c < 3 else M_EW
             mf[a, col] += levels * big
             mf[b, col] = mf[a, col]
+        for c in range(3):  # float64 keeps the leaf's bound (float32 derives it from the above)
+            mf[b, M_E + c] = mf[a, M_E + c]
     else:
         for c in range(3):
             mf[b, M_E + c] = mf[a, M_E + c] + levels * max(abs(box[a, c]), abs(box[a, 3 + c]))

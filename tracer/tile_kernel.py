@@ -13,8 +13,9 @@ import numpy as np
 from .aggregate import WALKS, WalkStack
 from .drivers import make_search
 from .jit import njit, specialise
-from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, make_ray
-from .records import C_EFFORT, C_NODES, C_PATCHES, COUNTER_LEN, RAY_LEN, Slots, TileScratch, ray_scratch
+from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, R_BUDGET, make_ray
+from .records import (BUDGET_FLOOR, C_EFFORT, C_NODES, C_PATCHES, C_UNRESOLVED, COUNTER_LEN, RAY_LEN, Slots,
+                      TileScratch, ray_scratch)
 from .subpatch import MF_LEN, MI_LEN
 from .hit_normal import hit_normal
 from .trim_kernel import MAX_SPLIT_DEPTH
@@ -52,6 +53,8 @@ def _render_tile(rect, origins, dirs, scene, q, slope, leaf_patch, out, trace, s
             length = math.sqrt(dx * dx + dy * dy + dz * dz)
             make_ray(ray, origins[y, x, 0], origins[y, x, 1], origins[y, x, 2], dx, dy, dz,
                      0.0, 0.0, slope * length)
+            if q.budget_factor > 0.0:
+                ray[R_BUDGET] = q.budget_factor * max(q.budget_base[y, x], BUDGET_FLOOR)
             hit[H_TIN] = math.inf
             for k in range(COUNTER_LEN):
                 counts[k] = 0
@@ -59,6 +62,7 @@ def _render_tile(rect, origins, dirs, scene, q, slope, leaf_patch, out, trace, s
             out.effort[y, x] = counts[C_EFFORT]
             out.nodes[y, x] = counts[C_NODES]
             out.patches_tested[y, x] = counts[C_PATCHES]
+            out.unresolved[y, x] = counts[C_UNRESOLVED] != 0
             if hit[H_TIN] == math.inf:
                 out.hit[y, x] = False
                 out.t[y, x] = math.inf
@@ -105,7 +109,8 @@ def make_tile_kernel(variant):
 
     rect: (y0, y1, x0, x1); origins/dirs: (H, W, 3) float64 rays as traced. scene: (lv, trims,
     agg) records; q: records.Query; slope: the threshold of detail per unit distance (adaptive
-    criterion; 0 otherwise). The kernel's patches are leaves, and leaf_patch maps them to scene
+    criterion; 0 otherwise); q's budget fields bound each ray's boxes (the float64 reference).
+    The kernel's patches are leaves, and leaf_patch maps them to scene
     patches for the output. out: kernel_channels.Outputs; uv is in the parameters of the patch's
     surface (NURBS). scratch: the calling thread's TileScratch (tile_scratch).
     """

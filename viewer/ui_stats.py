@@ -43,6 +43,9 @@ def ui_stats(state) -> bool:
     if e:
         imgui.separator_text(f"vs float64 reference ({r.ref_seconds:.2f} s)")
         imgui.text(f"{e['compared']} hits compared, {e['holes']} holes, {e['false_hits']} false hits")
+        if e.get("unresolved"):
+            imgui.text_colored((1.0, 0.6, 0.0, 1.0), f"{e['unresolved']} pixels unresolved: the reference ran "
+                               "out of its box budget there (orange in the error overlay)")
         if imgui.begin_table("errors", 2, imgui.TableFlags_.borders_inner_h):
             for key, label in ERROR_ROWS:
                 imgui.table_next_row()
