@@ -30,9 +30,10 @@ CONTRACT = {"ray_origin": ("float64", 3), "ray_dir": ("float64", 3), "hit": ("bo
             "position": ("float64", 3), "box_min": ("float64", 3), "box_max": ("float64", 3),
             "normal": ("float64", 3), "uv": ("float64", 2), "patch": ("int32", 0), "effort": ("int32", 0)}
 # The contract's further channels that the primary-ray kernel computes on every render.
-FURTHER = {"nodes": ("int32", 0), "patches_tested": ("int32", 0)}
+FURTHER = {"nodes": ("int32", 0), "patches_tested": ("int32", 0), "unresolved": ("bool", 0)}
 STAT_KEYS = {"rays", "hits", "time", "effort", "effort_hits", "error", "options", "size", "scene"}
-ERROR_KEYS = {"max", "min", "mean", "variance", "holes", "false_hits", "floor", "ratio", "inside_box", "inside_4ulp"}
+ERROR_KEYS = {"max", "min", "mean", "variance", "holes", "false_hits", "unresolved", "floor", "ratio", "inside_box",
+              "inside_4ulp"}
 
 
 def run(*argv):
@@ -55,6 +56,7 @@ def check_contract(a, w, h):
         assert a[name].dtype == np.dtype(dtype), name
         assert a[name].shape == ((h, w, last) if last else (h, w)), name
     hit = a["hit"]
+    assert not a["unresolved"].any()  # only the float64 reference has a box budget
     assert np.array_equal(hit, a["patch"] >= 0)
     assert np.all(np.isinf(a["t"][~hit])) and np.all(np.isfinite(a["t"][hit]))
     assert np.all(a["box_min"][hit] <= a["position"][hit]) and np.all(a["position"][hit] <= a["box_max"][hit])

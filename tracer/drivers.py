@@ -17,14 +17,17 @@ from __future__ import annotations
 from .jit import njit, specialise
 
 from .ray import H_TIN, R_BUDGET
+from .records import Leaves, Slots
 from .search_steps import HIT, MISS, PRUNED, accept, enter_frame, judge, open_child, report, root, set_event
 from .search_steps import subdivide, tighten, trace_hit, trim_state
 from .subpatch import M_TIN, patch_info
 
+WIDE_BITS = 53  # rational patches are searched in float64 slots whatever the working precision
+
 
 def _search(p, lv, trims, ray, hit, q, sl, trace):
     """The patch search template (specialised by make_search)."""
-    pa = patch_info(lv, p, q.bits, HAS_RATIONAL, HAS_CUBIC, HAS_LINEAR)  # noqa: F821 (make_search's)
+    pa = patch_info(lv, p, WIDE_BITS if WIDE else q.bits, HAS_RATIONAL, HAS_CUBIC, HAS_LINEAR)  # noqa: F821
     lray = enter_frame(sl, ray, lv, p)
     s = root(sl, pa, lv)
     effort = 1
@@ -53,19 +56,58 @@ def _search(p, lv, trims, ray, hit, q, sl, trace):
                 if STOP_AT_FIRST:  # noqa: F821
                     return effort
             continue
-        tighten(sl, a, pa, lv, HAS_RATIONAL)  # noqa: F821
+        tighten(sl, a, pa, lv)
         sp = subdivide(sl, a, sp, pa, lv, lray, q, hit[H_TIN], d_crit, shrank, trace, TRACING,  # noqa: F821
                        HAS_GENERAL)  # noqa: F821
         effort += 2
     return effort
 
 
+@njit(cache=True, nogil=True, inline='always')
+def wide_leaves(lv):
+    """The leaves as the float64 search of rational patches reads them: float64 points and bounds."""
+    return Leaves(lv.ctrl64, lv.pstart, lv.deg_u, lv.deg_v, lv.rational, lv.frame, lv.grid, lv.eps64,
+                  lv.ctrl64, lv.eps64)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def wide_slots(sl):
+    """The thread's slots with float64 points (everything else is shared: one search at a time)."""
+    return Slots(sl.buf64, sl.box, sl.mf, sl.mi, sl.order, sl.lray, sl.w64, sl.trim_h, sl.trim_m, sl.buf64)
+
+
+def _by_kind(p, lv, trims, ray, hit, q, sl, trace):
+    """Rational patches to the float64 search, the others to the working precision's."""
+    if lv.rational[p] != 0:
+        return wide(p, wide_leaves(lv), trims, ray, hit, q, wide_slots(sl), trace)  # noqa: F821
+    return narrow(p, lv, trims, ray, hit, q, sl, trace)  # noqa: F821
+
+
+def _rational_only(p, lv, trims, ray, hit, q, sl, trace):
+    return wide(p, wide_leaves(lv), trims, ray, hit, q, wide_slots(sl), trace)  # noqa: F821
+
+
 def make_search(variant, any_hit: bool):
     """The patch search of one variant: search(p, lv, trims, ray, hit, q, sl, trace) -> boxes
     computed; updates `hit` when it finds a hit box before hit[H_TIN] (any_hit: the first one
-    found, then it stops). It stops, too, once it has computed ray[R_BUDGET] boxes. lv: records.Leaves, trims: records.Trims, q: records.Query,
-    sl: records.Slots, trace: records.Trace (written only by tracing variants)."""
-    search = specialise(_search, HAS_RATIONAL=variant.rational, HAS_CUBIC=variant.cubic,
-                        HAS_LINEAR=variant.linear, HAS_GENERAL=variant.general or variant.rational,
-                        HAS_TRIMS=variant.trims, TRACING=variant.trace, STOP_AT_FIRST=any_hit)
-    return njit(cache=True, nogil=True, _nrt=False)(search)
+    found, then it stops). It stops, too, once it has computed ray[R_BUDGET] boxes.
+    lv: records.Leaves, trims: records.Trims, q: records.Query, sl: records.Slots, trace:
+    records.Trace (written only by tracing variants).
+
+    Integral patches are searched in the working precision. Rational ones are searched in float64
+    slots (re-derived from the float64 leaf, per-level bounds) and stop on the working precision's
+    grid: in float32, weights 1e-3..1e3 apart made float32 error bands dominate their boxes near
+    corners, and 0.2-5 % of float64 points fell outside the hit box."""
+    flags = dict(HAS_TRIMS=variant.trims, TRACING=variant.trace, STOP_AT_FIRST=any_hit)
+    kernel = njit(cache=True, nogil=True, _nrt=False)
+    narrow = None
+    if variant.cubic or variant.linear or variant.general:
+        narrow = kernel(specialise(_search, WIDE=False, HAS_RATIONAL=False, HAS_CUBIC=variant.cubic,
+                                   HAS_LINEAR=variant.linear, HAS_GENERAL=variant.general, **flags))
+    if not variant.rational:
+        return narrow
+    wide = kernel(specialise(_search, WIDE=True, HAS_RATIONAL=True, HAS_CUBIC=False, HAS_LINEAR=False,
+                             HAS_GENERAL=True, **flags))
+    if narrow is None:
+        return njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(_rational_only, wide=wide))
+    return njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(_by_kind, wide=wide, narrow=narrow))

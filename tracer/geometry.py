@@ -202,7 +202,7 @@ def prepare(scene, precision: str = "f32", presplit: int | None = None) -> Geome
     n = len(deg_u)
     xyz = all_points[:, :3]
     patch_of_point = np.repeat(np.arange(n), np.diff(start))
-    weight = _weights(scene, all_points[:, 3], start, patch_of_point, leaf_patch, precision)
+    weight = _weights(scene, all_points[:, 3], start, patch_of_point, leaf_patch)
     lo, hi = _per_leaf(np.minimum, xyz, start), _per_leaf(np.maximum, xyz, start)
     frame = _frames(lo, hi)
     local = xyz - frame[patch_of_point]
@@ -289,11 +289,11 @@ def _frames(lo, hi):
     return np.where(normal32, frame, centre)
 
 
-def _weights(scene, w, start, patch_of_point, leaf_patch, precision):
+def _weights(scene, w, start, patch_of_point, leaf_patch):
     """(total points, 1) the weights the leaves are stored with: checked (limits.check_weights) and
     scaled by a power of two per leaf where they lie far from 1 (limits.weight_scale)."""
     wmin, wmax = _per_leaf(np.minimum, w, start), _per_leaf(np.maximum, w, start)
-    check_weights(scene, wmin, wmax, leaf_patch, precision)
+    check_weights(scene, wmin, wmax, leaf_patch)
     scale = weight_scale(wmax)
     return (w if np.all(scale == 1.0) else w * scale[patch_of_point])[:, None]
 

@@ -24,11 +24,10 @@ Errors (a one-line SceneError naming the file and the extent):
   back) and the float32 rays from it would pass float32's largest number, 2^128. E < 2^-100
   (7.9e-31): float32 coordinates inside the leaves, and their ulps, would be subnormal. The
   remedy `--precision f64` is named.
-- A leaf whose weights differ by a ratio of 2^bits or more (2^24 = 1.7e7 in float32, 2^53 =
-  9e15 in float64): the working precision cannot add its smallest weight to its largest, so
-  de Casteljau's sums drop it and the rational bounds divide by a lost weight (float32 then
-  reports hits 1e11 off; float64 boxes grow to the whole leaf). `check_weights`, per leaf (a
-  pre-split leaf spans a smaller ratio than its patch); float32 names the remedy.
+- A leaf whose weights differ by a ratio of 2^53 (9e15) or more: float64, in which rational
+  patches are searched at either precision, cannot add its smallest weight to its largest, so
+  de Casteljau's sums drop it and the boxes grow to the whole leaf. `check_weights`, per leaf (a
+  pre-split leaf spans a smaller ratio than its patch).
 
 Warnings (a line for the CLI to print; the render goes on):
 
@@ -116,11 +115,12 @@ def check_extent(scene, precision: str) -> list:
     return []
 
 
-def check_weights(scene, wmin, wmax, leaf_patch, precision: str) -> None:
-    """SceneError naming the first patch with a leaf whose weights differ by 2^bits or more.
+def check_weights(scene, wmin, wmax, leaf_patch) -> None:
+    """SceneError naming the first patch with a leaf whose weights differ by 2^53 or more (rational
+    patches are searched in float64 whatever the working precision: drivers.make_search).
 
     wmin, wmax: (n_leaves,) each leaf's smallest and largest weight; leaf_patch: its scene patch."""
-    bits = PRECISION_BITS[precision]
+    bits = PRECISION_BITS["f64"]
     with np.errstate(over="ignore", divide="ignore"):
         ratio = wmax / wmin  # weights are > 0 (the loaders check); a 0 would be an infinite ratio
     bad = np.flatnonzero(ratio >= 2.0 ** bits)
@@ -129,10 +129,9 @@ def check_weights(scene, wmin, wmax, leaf_patch, precision: str) -> None:
     leaf = bad[0]
     patch = int(leaf_patch[leaf])
     path, line = _patch_source(scene, patch)
-    fix = REMEDY if ratio[leaf] < 2.0 ** PRECISION_BITS["f64"] else ""
     raise SceneError(f"patch {patch}: weights from {_g(wmin[leaf])} to {_g(wmax[leaf])} within one of its "
-                     f"pre-split pieces: {PRECISION_NAME[precision]} cannot add the smallest to the largest "
-                     f"beyond a ratio of 2^{bits} = {_g(2.0 ** bits)}{fix}", path=path, line=line)
+                     f"pre-split pieces: float64 cannot add the smallest to the largest beyond a ratio of "
+                     f"2^{bits} = {_g(2.0 ** bits)}", path=path, line=line)
 
 
 def weight_scale(wmax) -> np.ndarray:

@@ -25,11 +25,11 @@ Leaves = namedtuple("Leaves", "ctrl pstart deg_u deg_v rational frame grid eps c
 Trims = namedtuple("Trims", "patch_trim domain seg_points seg_start surf_seg_start start_inside seg_box")
 
 # One patch as a search sees it: index, degrees, point count and first point; rational, bicubic
-# or bilinear (integral) split; and its arithmetic: mantissa bits, whether slots carry their
-# subdivision rounding (cumulative, below float64), in homogeneous bounds (rational, float32),
-# the per-level bound relative to the magnitude otherwise (sub_scale), a rounding's relative
-# size (round_unit) and what counts as a real decrease of a box (shrink_factor).
-PatchInfo = namedtuple("PatchInfo", "p m n count start rational cubic linear bits cumulative homogeneous "
+# or bilinear (integral) split; and its slots' arithmetic: mantissa bits, whether slots carry their
+# subdivision rounding (cumulative, below float64), the per-level bound relative to the magnitude
+# otherwise (sub_scale), a rounding's relative size (round_unit) and what counts as a real
+# decrease of a box (shrink_factor).
+PatchInfo = namedtuple("PatchInfo", "p m n count start rational cubic linear bits cumulative "
                        "sub_scale round_unit shrink_factor")
 
 # What a search is asked: the criterion code and its parameter, split heuristic, depth cap,
@@ -41,8 +41,10 @@ BUDGET_FLOOR = 256
 # The sub-patch stack of one thread, S = max depth + 2 slots (see subpatch.py for columns):
 # buf (S, 4, P) working dtype, box (S, 6), mf (S, MF_LEN), mi (S, MI_LEN) int32,
 # order (S,) uint32 stack position -> slot; lray: the ray moved into the patch's frame;
-# w64 (4, P) float64 for re-derivation; trim_h, trim_m: the trim parity's curve stack.
-Slots = namedtuple("Slots", "buf box mf mi order lray w64 trim_h trim_m")
+# w64 (4, P) float64 for re-derivation; trim_h, trim_m: the trim parity's curve stack;
+# buf64 (S, 4, P) float64, the points of rational patches, which are searched in float64 whatever
+# the working precision (buf itself in float64; a (1, 4, 1) stand-in where no patch is rational).
+Slots = namedtuple("Slots", "buf box mf mi order lray w64 trim_h trim_m buf64")
 
 # Per ray counters the drivers and aggregates add to (int64 array of COUNTER_LEN); C_UNRESOLVED
 # is 1 where the ray's box budget ran out (its hit, if any, need not be the closest).

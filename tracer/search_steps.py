@@ -13,14 +13,13 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from .jit import njit
 
 from .ray import H_DEPTH, H_DU, H_DV, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, R_DT, R_O, R_T0
-from .subpatch import (I_DEPTH, I_LAST, I_STALLED, I_STEP, I_TRIM, M_D, M_DPAR, M_E, M_EH, M_EW, M_GULP, M_MAG,
-                       M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, REFINE, RECENTRE, grid_l1, hull_hit,
-                       hull_off_plane, open_box, rational_bound, raw_box, recentre, refine, refine_rational,
-                       seam_plane, snap_down, snap_up, split, split_direction, ulp, widen, within_ulps)
+from .subpatch import (I_DEPTH, I_LAST, I_STALLED, I_STEP, I_TRIM, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN,
+                       M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, REFINE, RECENTRE, grid_l1, hull_hit, hull_off_plane,
+                       open_box, raw_box, recentre, refine, seam_plane, snap_down, snap_up, split, split_direction,
+                       ulp, widen, within_ulps)
 from .trim_kernel import rect_meets_loops, trim_inside
 
 # Termination criteria (codes as in options.CRITERION_CODE).
@@ -110,16 +109,6 @@ def root(sl, pa, lv):
     mi[s, I_LAST] = -1
     mi[s, I_TRIM] = 0
     raw_box(sl, s, pa.count, pa.rational)
-    if pa.homogeneous:  # bounds against the float64 leaf
-        for c in range(4):
-            err = 0.0
-            for k in range(pa.count):
-                err = max(err, abs(np.float64(buf[s, c, k]) - lv.ctrl64[c, pa.start + k]))
-            if c < 3:
-                mf[s, M_EH + c] = err
-            else:
-                mf[s, M_EW] = err
-        rational_bound(sl, s, pa, lv.eps64)
     widen(sl, s, pa.sub_scale)
     frame_mag = 0.0
     for k in range(6):
@@ -180,14 +169,12 @@ def judge(sl, a, pa, lv, ray, q):
     elif criterion == ADAPTIVE:
         stop = stop or d_crit <= ray[R_T0] + ray[R_DT] * mf[a, M_TIN]
     elif criterion == MANTISSA:
-        stop = stop or within_ulps(sl, a, param, pa.bits, lv, pa.p)
+        stop = stop or within_ulps(sl, a, param, q.bits, lv, pa.p)  # the working precision's ulps
     # Float precision: the box did not shrink, even after halving the other direction too.
     # "Shrink" means by more than rounding noise: in float64 (its own grid) the widened box
     # otherwise keeps losing last bits forever. An interval that can no longer halve is spent.
     # A box that is mostly error bound cannot get meaningfully smaller either.
-    # (Not so for rational slots in float32: re-derived from float64, their bound keeps falling
-    # with their weights' spread as they shrink.)
-    shrank = d_crit < mf[a, M_DPAR] * pa.shrink_factor and (d > 1.0625 * mf[a, M_W] or pa.homogeneous)
+    shrank = d_crit < mf[a, M_DPAR] * pa.shrink_factor and d > 1.0625 * mf[a, M_W]
     if (mf[a, M_U0] == mf[a, M_U1]) or (mf[a, M_V0] == mf[a, M_V1]):
         stop = True  # the parameter interval cannot be halved any more
     if not shrank and sl.mi[a, I_STALLED] == 1 and not (pa.rational and d > limit):
@@ -243,24 +230,17 @@ def trace_hit(trace, sl, a, hit):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def tighten(sl, a, pa, lv, has_rational):
-    """Re-derive slot a from float64 when its error band nears its box, else re-centre it when
-    the box is much smaller than its coordinates (midpoints then round relative to the box).
-    has_rational: the variant has rational patches (a constant: integral variants never
-    compile refine_rational)."""
+def tighten(sl, a, pa, lv):
+    """Re-derive slot a from float64 when its error band nears its box (float32 slots: integral
+    patches), else re-centre it when the box is much smaller than its coordinates (midpoints
+    then round relative to the box)."""
     box = sl.box
     mf = sl.mf
     ext = max(box[a, 3] - box[a, 0], box[a, 4] - box[a, 1], box[a, 5] - box[a, 2])
     if pa.cumulative and (mf[a, M_E] + mf[a, M_E + 1] + mf[a, M_E + 2]) * REFINE > ext:
-        if has_rational:
-            if pa.rational:
-                refine_rational(sl, a, pa, lv)
-            else:
-                refine(sl, a, pa, lv)
-        else:
-            refine(sl, a, pa, lv)
+        refine(sl, a, pa, lv)
     elif ext * RECENTRE < mf[a, M_MAG]:
-        recentre(sl, a, pa, lv.eps64)
+        recentre(sl, a, pa)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -280,8 +260,6 @@ def subdivide(sl, a, sp, pa, lv, ray, q, t_max, d_crit, shrank, trace, tracing, 
     depth = mi[a, I_DEPTH]
     mi[b, I_TRIM] = mi[a, I_TRIM]
     for child in (a, b):
-        if pa.homogeneous:
-            rational_bound(sl, child, pa, lv.eps64)
         widen(sl, child, pa.sub_scale)
         mf[child, M_DPAR] = d_crit
         mi[child, I_DEPTH] = depth + 1

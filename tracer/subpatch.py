@@ -36,9 +36,7 @@ M_MAG = 11                            # largest |local coordinate| of the box
 M_GULP = 12                           # the coarsest grid step (float64: its ulp at the frame magnitude)
 M_W = 13                              # L1 size of the widening (error bounds) in M_D
 M_E = 14                              # 14, 15, 16: bound on |stored - true surface| per axis
-M_EH = 17                             # 17, 18, 19: rational, float32: bound on |stored - float64
-M_EW = 20                             # leaf| of the homogeneous w x, w y, w z, and of w (M_EW)
-MF_LEN = 21
+MF_LEN = 17
 # Per-slot int metadata: depth, stalled (the box did not shrink), last split (0 u, 1 v, -1 none),
 # trace step (-1 none), trim state (0 undecided, 1 wholly in the kept region).
 I_DEPTH, I_STALLED, I_LAST, I_STEP, I_TRIM = 0, 1, 2, 3, 4
@@ -50,9 +48,8 @@ SUB_ERR_BITS = 8    # float64: a split's rounding stays below 2^-(bits - 8) of t
 # Calls or inlines. numba inlines an inline='always' helper into its own IR once per call site,
 # and its type inference, SSA and lowering then cost more than linearly in the kernel's size; a
 # plain call is typed and lowered once, and LLVM still inlines it where that pays. So leaf
-# operations used at several call sites are calls (_CALLED: point, raw_box, widen,
-# rational_bound, snap_*, ulp), and so are the rare re-centring and
-# re-deriving (_COLD); operations given a variant flag as an argument stay inlined, so that the
+# operations used at several call sites are calls (_CALLED: point, raw_box, widen, snap_*,
+# ulp), and so are the rare re-centring and re-deriving (_COLD); operations given a variant flag as an argument stay inlined, so that the
 # flag stays a constant their branches are pruned by (split, tighten, open_child). The hull and
 # slab tests stay inlined too: LLVM leaves them as calls, which cost the search 8 %.
 
@@ -64,7 +61,8 @@ def max_depth_for(precision_bits: int) -> int:
 
 @njit(cache=True, nogil=True, inline='always')
 def patch_info(lv, p, bits, has_rational, has_cubic, has_linear):
-    """The PatchInfo of leaf p (has_*: the kernel variant's patch kinds, compile-time flags)."""
+    """The PatchInfo of leaf p, its slots' arithmetic `bits` wide (has_*: the kernel variant's
+    patch kinds, compile-time flags)."""
     m = lv.deg_u[p]
     n = lv.deg_v[p]
     rational = has_rational and lv.rational[p] != 0
@@ -72,7 +70,7 @@ def patch_info(lv, p, bits, has_rational, has_cubic, has_linear):
     return PatchInfo(p, m, n, (m + 1) * (n + 1), lv.pstart[p], rational,
                      has_cubic and m == 3 and n == 3 and not rational,
                      has_linear and m == 1 and n == 1 and not rational,
-                     bits, cumulative, cumulative and rational,
+                     bits, cumulative,
                      0.0 if cumulative else math.ldexp(1.0, SUB_ERR_BITS - bits),
                      math.ldexp(1.0, -bits) if cumulative else 0.0,
                      1.0 - math.ldexp(1.0, 4 - bits))  # a real decrease: more than 16 ulps
@@ -125,25 +123,6 @@ def widen(sl, s, sub_scale):
     mf[s, M_D] = (box[s, 3] - box[s, 0]) + (box[s, 4] - box[s, 1]) + (box[s, 5] - box[s, 2])
 
 
-@njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
-def rational_bound(sl, s, pa, eps64):
-    """M_E of a rational slot from its homogeneous bounds (M_EH, M_EW), before widening: the
-    stored surface N~/W~ differs from the float64 leaf's N/W by (dN - S~ dW) / W per axis, with
-    |dN| <= M_EH, |dW| <= M_EW, |S~| <= the raw box and W >= the least stored weight - M_EW;
-    plus the leaf's own bound (eps64). Infinite if the weights' bound reaches the weights."""
-    buf = sl.buf
-    box = sl.box
-    mf = sl.mf
-    w_min = math.inf
-    for k in range(pa.count):
-        w_min = min(w_min, np.float64(buf[s, 3, k]))
-    denom = w_min - mf[s, M_EW]
-    for c in range(3):
-        x = max(abs(box[s, c]), abs(box[s, 3 + c]))
-        e = (mf[s, M_EH + c] + x * mf[s, M_EW]) / denom * (1.0 + 2.0 ** -40) if denom > 0.0 else math.inf
-        mf[s, M_E + c] = eps64[pa.p, c] + e
-
-
 @njit(cache=True, nogil=True, inline='always')
 def grid_l1(sl, s, grid, p):
     """L1 diameter of slot s's box rounded outward onto the leaf's grid (exact)."""
@@ -177,10 +156,11 @@ def raw_box(sl, s, count, is_rational):
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # rare: a call, not inlined (see _COLD)
-def recentre(sl, s, pa, eps64):
+def recentre(sl, s, pa):
     """Shift slot s's control points so its box is centred near 0 (the shift rounded to the
     working precision: for points close to the shift the subtraction is exact, Sterbenz; the
-    others round by at most half an ulp of the result, added to the slot's error bound)."""
+    others round by at most half an ulp of the result, added to the slot's error bound in float32,
+    covered by the per-level bound in float64, where rational slots are searched)."""
     buf = sl.buf
     box = sl.box
     mf = sl.mf
@@ -192,22 +172,14 @@ def recentre(sl, s, pa, eps64):
             q = math.ldexp(1.0, math.frexp(offset)[1] - 53)
             shift = math.floor(shift / q + 0.5) * q
         if pa.rational:
-            big = 0.0
-            w_max = 0.0
-            for k in range(count):  # w x - shift w, with one rounding
+            for k in range(count):  # w x - shift w
                 buf[s, c, k] = float(buf[s, c, k]) - shift * float(buf[s, 3, k])
-                big = max(big, abs(np.float64(buf[s, c, k])))
-                w_max = max(w_max, np.float64(buf[s, 3, k]))
-            # The weights' error moves by the shift; the product and difference round once each.
-            mf[s, M_EH + c] += abs(shift) * mf[s, M_EW] + (pa.round_unit + 2.0 ** -52) * (big + abs(shift) * w_max)
         else:
             for k in range(count):
                 buf[s, c, k] = float(buf[s, c, k]) - shift
         mf[s, M_OX + c] += shift
     raw_box(sl, s, count, pa.rational)
-    if pa.homogeneous:
-        rational_bound(sl, s, pa, eps64)
-    elif not pa.rational:
+    if not pa.rational:
         for c in range(3):
             mf[s, M_E + c] += pa.round_unit * max(abs(box[s, c]), abs(box[s, 3 + c]))
     widen(sl, s, pa.sub_scale)
@@ -257,48 +229,6 @@ def refine(sl, s, pa, lv):
         mf[s, M_E + c] = err + big * rel + lv.eps64[pa.p, c]
     raw_box(sl, s, count, pa.rational)  # False: integral
     widen(sl, s, 0.0)  # the bound carries every rounding (float32, integral)
-
-
-@njit(cache=True, nogil=True, _nrt=False)  # rare: a call, not inlined (see _COLD)
-def refine_rational(sl, s, pa, lv):
-    """refine for rational slots: the homogeneous float64 leaf restricted to the slot's interval,
-    moved to a new offset at the centre of its (Euclidean) box, stored with fresh bounds."""
-    buf = sl.buf
-    mf = sl.mf
-    w64 = sl.w64
-    ctrl64 = lv.ctrl64
-    count = pa.count
-    start = pa.start
-    rel = _restricted_leaf(sl, s, pa, lv, 4)
-    big_w = 0.0
-    w_err = 0.0
-    for k in range(count):
-        big_w = max(big_w, abs(ctrl64[3, start + k]))
-        buf[s, 3, k] = w64[3, k]
-        w_err = max(w_err, abs(np.float64(buf[s, 3, k]) - w64[3, k]))
-    w_bound = w_err + big_w * rel  # |stored weight - the float64 leaf's|
-    mf[s, M_EW] = w_bound
-    for c in range(3):
-        lo = math.inf
-        hi = -math.inf
-        big = 0.0
-        for k in range(count):
-            q = w64[c, k] / w64[3, k]
-            lo = min(lo, q)
-            hi = max(hi, q)
-            big = max(big, abs(ctrl64[c, start + k]))
-        offset = _to_working(0.5 * (lo + hi), pa.bits)
-        err = 0.0
-        for k in range(count):
-            local = w64[c, k] - offset * w64[3, k]  # two roundings of at most an ulp (below)
-            buf[s, c, k] = local
-            err = max(err, abs(np.float64(buf[s, c, k]) - local)
-                      + (abs(local) + abs(offset * w64[3, k])) * 2.0 ** -52)
-        mf[s, M_OX + c] = offset
-        mf[s, M_EH + c] = err + big * rel + abs(offset) * w_bound
-    raw_box(sl, s, count, pa.rational)  # True
-    rational_bound(sl, s, pa, lv.eps64)
-    widen(sl, s, 0.0)
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
@@ -420,21 +350,10 @@ def split(sl, a, b, pa, direction, has_general):
     box = sl.box
     mf = sl.mf
     count = pa.count
-    levels = (pa.m if direction == 0 else pa.n) * pa.round_unit
-    if pa.rational:  # the same for the homogeneous coordinates (M_E follows from them later)
-        for c in range(4):
-            big = 0.0
-            for k in range(count):
-                big = max(big, abs(np.float64(buf[a, c, k])))
-            col = M_EH + c if c < 3 else M_EW
-            mf[a, col] += levels * big
-            mf[b, col] = mf[a, col]
-        for c in range(3):  # float64 keeps the leaf's bound (float32 derives it from the above)
-            mf[b, M_E + c] = mf[a, M_E + c]
-    else:
-        for c in range(3):
-            mf[b, M_E + c] = mf[a, M_E + c] + levels * max(abs(box[a, c]), abs(box[a, 3 + c]))
-            mf[a, M_E + c] = mf[b, M_E + c]
+    levels = (pa.m if direction == 0 else pa.n) * pa.round_unit  # 0 in float64 (see sub_scale)
+    for c in range(3):
+        mf[b, M_E + c] = mf[a, M_E + c] + levels * max(abs(box[a, c]), abs(box[a, 3 + c]))
+        mf[a, M_E + c] = mf[b, M_E + c]
     if pa.cubic:
         if direction == 0:
             split_u_cubic(buf, a, b, box)

@@ -28,11 +28,15 @@ def tile_scratch(inputs) -> TileScratch:
     lv = inputs.scene[0]
     _, max_points, stack_nodes, trim_points = inputs.sizes
     slots = inputs.query.max_depth + 2
-    sl = Slots(np.zeros((slots, 4, max_points), lv.ctrl.dtype), np.zeros((slots, 6)),
-               np.zeros((slots, MF_LEN)), np.zeros((slots, MI_LEN), np.int32),
+    buf = np.zeros((slots, 4, max_points), lv.ctrl.dtype)
+    if buf.dtype == np.float64:
+        buf64 = buf
+    else:  # rational patches are searched in float64 slots (drivers.make_search)
+        buf64 = np.zeros((slots, 4, max_points) if np.any(lv.rational) else (1, 4, 1))
+    sl = Slots(buf, np.zeros((slots, 6)), np.zeros((slots, MF_LEN)), np.zeros((slots, MI_LEN), np.int32),
                np.arange(slots).astype(np.uint32),  # unsigned slot indices: no negative-index fix-ups
                np.zeros(RAY_LEN), np.zeros((4, max_points)),
-               np.zeros((MAX_SPLIT_DEPTH + 4, trim_points, 3)), np.zeros((MAX_SPLIT_DEPTH + 4, 6)))
+               np.zeros((MAX_SPLIT_DEPTH + 4, trim_points, 3)), np.zeros((MAX_SPLIT_DEPTH + 4, 6)), buf64)
     stack = WalkStack(np.zeros(stack_nodes, np.int32), np.zeros(stack_nodes))
     return TileScratch(sl, stack, ray_scratch(max_points))
 
