@@ -30,7 +30,9 @@ CONTRACT = {"ray_origin": ("float64", 3), "ray_dir": ("float64", 3), "hit": ("bo
             "position": ("float64", 3), "box_min": ("float64", 3), "box_max": ("float64", 3),
             "normal": ("float64", 3), "uv": ("float64", 2), "patch": ("int32", 0), "effort": ("int32", 0)}
 # The contract's further channels that the primary-ray kernel computes on every render.
-FURTHER = {"nodes": ("int32", 0), "patches_tested": ("int32", 0), "unresolved": ("bool", 0)}
+FURTHER = {"nodes": ("int32", 0), "patches_tested": ("int32", 0), "surfaces_tested": ("int32", 0),
+           "box_tests": ("int32", 0), "cache_hits": ("int32", 0), "cache_misses": ("int32", 0),
+           "unresolved": ("bool", 0)}
 STAT_KEYS = {"rays", "hits", "time", "effort", "effort_hits", "error", "options", "size", "scene"}
 ERROR_KEYS = {"max", "min", "mean", "variance", "holes", "false_hits", "unresolved", "floor", "ratio", "inside_box",
               "inside_4ulp"}

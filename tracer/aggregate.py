@@ -22,7 +22,7 @@ import numpy as np
 
 from .jit import njit, specialise
 from .ray import H_TIN, R_BUDGET, slab
-from .records import C_EFFORT, C_NODES, C_PATCHES, C_UNRESOLVED
+from .records import C_BOX_TESTS, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES, C_UNRESOLVED
 
 BvhNodes = namedtuple("BvhNodes", "node_box node_child leaf_first leaf_count items")
 # The walk's fixed stack: node indices and their entry t.
@@ -47,6 +47,9 @@ def _bvh_walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts):
     node_child = agg.node_child
     t_max = hit[H_TIN]
     ok, t_in, _ = slab(node_box[0], 0.0, 0.0, 0.0, ray)
+    counts[C_BOX_TESTS] += 1
+    if node_child[0, 0] < 0:
+        counts[C_SURFACES] += agg.leaf_count[0]
     if not ok:
         return
     stack.nodes[0] = 0
@@ -75,6 +78,10 @@ def _bvh_walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts):
         right = node_child[node, 1]
         ok_l, tl, _ = slab(node_box[left], 0.0, 0.0, 0.0, ray)
         ok_r, tr, _ = slab(node_box[right], 0.0, 0.0, 0.0, ray)
+        counts[C_BOX_TESTS] += 2
+        for child in (left, right):  # a leaf's box is its patches' box (one patch a leaf)
+            if node_child[child, 0] < 0:
+                counts[C_SURFACES] += agg.leaf_count[child]
         ok_l = ok_l and tl < hit[H_TIN]
         ok_r = ok_r and tr < hit[H_TIN]
         if ok_l and ok_r:

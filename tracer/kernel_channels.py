@@ -42,6 +42,15 @@ KERNEL_CHANNELS = (
                   label="nodes visited", units="nodes"),
     KernelChannel("patches_tested", np.int32, (), 0, "patches whose bounds the primary ray met and whose search "
                   "was started", counter=True, label="patches tested", units="patches"),
+    KernelChannel("surfaces_tested", np.int32, (), 0, "patches whose outermost bounding box was tested against "
+                  "the primary ray (Lischinski's surfaces tested)", counter=True, label="surfaces tested",
+                  units="patches"),
+    KernelChannel("box_tests", np.int32, (), 0, "ray-box tests of the primary ray: aggregate nodes, patch boxes, "
+                  "cached surface-tree nodes and sub-patch boxes", counter=True, label="ray-box tests", units="boxes"),
+    KernelChannel("cache_hits", np.int32, (), 0, "patch searches of the primary ray that started from a cached "
+                  "surface tree", counter=True, label="cache hits", units="searches"),
+    KernelChannel("cache_misses", np.int32, (), 0, "patch searches of the primary ray that found no cached surface "
+                  "tree (with the cache on)", counter=True, label="cache misses", units="searches"),
     KernelChannel("unresolved", bool, (), False, "the ray's box budget ran out (renders given one: the float64 "
                   "reference): its hit, or miss, is not known to be the closest"),
 )

@@ -17,12 +17,17 @@ CRITERIA = ("float", "fixed", "adaptive", "mantissa")
 SPLITS = ("length", "cross")
 PRECISIONS = ("f32", "f64")
 MODES = ("shaded", "normal", "uv", "depth", "patch")
+BUNDLES = ("1x1", "2x2", "4x2", "2x4", "4x4", "8x8")  # columns x rows of pixels traced together
+ACCELS = ("bvh", "kdtree", "grid")
+KD_SPLITS = ("sah", "middle")
+ORDERS = ("scanline", "peano", "itembuffer")
 
 # Kernel codes: small ints so the numba kernels take scalars, not strings.
 CRITERION_CODE = {name: i for i, name in enumerate(CRITERIA)}
 SPLIT_CODE = {name: i for i, name in enumerate(SPLITS)}
 
 _opt = partial(described, group="Tracer")
+_coh = partial(described, group="Coherence")
 
 
 @dataclass(frozen=True)
@@ -44,6 +49,25 @@ class Options(Record):
                       choices=SPLITS)
     precision: str = _opt("f32", "working precision of the subdivision", choices=PRECISIONS)
     trims: bool = _opt(True, "apply trimming curves (off: show trimmed surfaces whole)")
+    bundle: str = _coh("1x1", "ray bundle: columns x rows of pixels whose rays share one subdivision stack "
+                       "(Dammertz 2.5.1)", choices=BUNDLES)
+    accel: str = _coh("bvh", "acceleration structure: bounding volume hierarchy, kd-tree, or uniform grid",
+                      choices=ACCELS)
+    kd_depth: int = _coh(20, "kd-tree: maximum depth", lo=1, hi=40, when={"accel": "kdtree"})
+    kd_split: str = _coh("sah", "kd-tree: split planes by the surface area heuristic, or at the patch-box side "
+                         "nearest the voxel's middle (Dammertz 3.2)", choices=KD_SPLITS, when={"accel": "kdtree"})
+    grid_scale: float = _coh(1.0, "grid: voxels per axis relative to Lischinski's rule (voxel side a quarter of "
+                             "the mean patch box side)", lo=0.0625, hi=8.0, log=True, when={"accel": "grid"})
+    mailbox: bool = _coh(False, "kd-tree and grid: search each patch once per ray along the whole ray "
+                         "(off: each voxel searches its patches with the ray clamped to the voxel)")
+    cache: bool = _coh(False, "keep the upper levels of each patch's subdivision tree across rays "
+                       "(Lischinski's surface trees, least recently used released first)")
+    cache_mb: float = _coh(64.0, "surface-tree cache: memory bound per render thread, MiB", lo=1.0, hi=65536.0,
+                           log=True, when={"cache": True})
+    cache_depth: int = _coh(12, "surface-tree cache: levels of each patch's tree kept", lo=1, hi=40,
+                            when={"cache": True})
+    order: str = _coh("scanline", "pixel order: rows, the Peano curve (every quadrant finished before the next), "
+                      "or patch by patch from a 64x64 item buffer", choices=ORDERS)
     mode: str = _opt("shaded", "what the image shows", choices=MODES, group="Display")
     tile_size: int = _opt(32, "tile edge in pixels (tiles render in parallel)", lo=4, hi=256, group="Render")
     threads: int = _opt(0, "render threads (0: one per core)", lo=0, hi=256, group="Render")

@@ -46,10 +46,13 @@ BUDGET_FLOOR = 256
 # the working precision (buf itself in float64; a (1, 4, 1) stand-in where no patch is rational).
 Slots = namedtuple("Slots", "buf box mf mi order lray w64 trim_h trim_m buf64")
 
-# Per ray counters the drivers and aggregates add to (int64 array of COUNTER_LEN); C_UNRESOLVED
-# is 1 where the ray's box budget ran out (its hit, if any, need not be the closest).
-C_EFFORT, C_NODES, C_PATCHES, C_UNRESOLVED = 0, 1, 2, 3
-COUNTER_LEN = 4
+# Per ray counters the drivers and aggregates add to (int64 array of COUNTER_LEN): sub-patch boxes
+# computed (effort), aggregate nodes (or voxels) visited, patches searched, 1 where the ray's box
+# budget ran out (its hit, if any, need not be the closest), patches whose outermost box was
+# tested (Lischinski's "surfaces tested"), the aggregate's own ray-box tests, and patch searches
+# that found (or missed) a cached surface tree.
+C_EFFORT, C_NODES, C_PATCHES, C_UNRESOLVED, C_SURFACES, C_BOX_TESTS, C_CACHE_HITS, C_CACHE_MISSES = range(8)
+COUNTER_LEN = 8
 
 # The subdivision trace of one ray: steps (k, TRACE_F) float64, (k, TRACE_I) int32, and
 # state [steps used, truncated, reported step]. Kernels built without tracing ignore it.

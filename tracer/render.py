@@ -47,6 +47,10 @@ class Frame:
     effort: np.ndarray
     nodes: np.ndarray | None = None
     patches_tested: np.ndarray | None = None
+    surfaces_tested: np.ndarray | None = None
+    box_tests: np.ndarray | None = None
+    cache_hits: np.ndarray | None = None
+    cache_misses: np.ndarray | None = None
     unresolved: np.ndarray | None = None
     seconds: float = 0.0
     tiles_done: int = 0
@@ -81,6 +85,27 @@ def tiles(width: int, height: int, size: int):
 
 
 @dataclass(frozen=True)
+class Unit:
+    """One call of the tile kernel: pixels (k, 2) int32 (row, column) in the order they are traced,
+    and the rectangle (y0, y1, x0, x1) that holds them (what a display refreshes)."""
+
+    pixels: np.ndarray
+    rect: tuple
+
+
+def rect_pixels(rect) -> np.ndarray:
+    """The pixels of a rectangle, row by row, (k, 2) int32."""
+    y0, y1, x0, x1 = rect
+    ys, xs = np.mgrid[y0:y1, x0:x1]
+    return np.ascontiguousarray(np.stack([ys.ravel(), xs.ravel()], axis=1), np.int32)
+
+
+def work_units(width: int, height: int, opts: Options) -> list:
+    """The image's work units in the order they are handed out: tiles, row by row."""
+    return [Unit(rect_pixels(r), r) for r in tiles(width, height, opts.tile_size)]
+
+
+@dataclass(frozen=True)
 class KernelInputs:
     """What the kernels take for one frame: the scene records (Leaves, Trims, aggregate), the
     query, the scratch sizes (threshold-of-detail slope, points, walk stack, trim points) and the
@@ -93,11 +118,22 @@ class KernelInputs:
 
 
 NO_BUDGET = np.zeros((1, 1), np.int32)
+# Coherence option values whose code is still being written this session (issue 12): refused in
+# one line rather than ignored. Each entry goes when its feature lands.
+NOT_YET = {"accel": ("kdtree", "grid"), "bundle": ("2x2", "4x2", "2x4", "4x4", "8x8"), "cache": (True,),
+           "order": ("peano", "itembuffer")}
+
+
+def check_available(opts: Options) -> None:
+    for name, values in NOT_YET.items():
+        if getattr(opts, name) in values:
+            raise ValueError(f"option {name}: {getattr(opts, name)!r} is not available in this build")
 
 
 def kernel_inputs(geom: Geometry, opts: Options, pixel_angle: float, budget=None) -> KernelInputs:
     """The records a tile kernel needs, derived once per frame. budget: (factor, (H, W) int32 base)
     bounds each ray's boxes to factor * max(base, records.BUDGET_FLOOR); None: no bound."""
+    check_available(opts)
     criterion = CRITERION_CODE[opts.criterion]
     param = {"float": 0.0, "fixed": opts.fixed_size, "adaptive": 0.0,
              "mantissa": float(opts.mantissa_ulps)}[opts.criterion]
@@ -120,35 +156,37 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
                order=None, on_compile=None, driver: str = "closest", budget=None) -> Frame:
     """Trace given primary rays (H, W, 3) tile by tile; returns the filled Frame.
 
-    on_tile(frame, rect) is called from the calling thread as each tile finishes;
-    progress(n) advances a progress bar; `order` optionally permutes the tiles;
+    on_tile(frame, rect) is called from the calling thread as each work unit finishes (rect: the
+    rectangle holding its pixels); progress(n) advances a progress bar; `order` optionally permutes
+    the work units (work_units);
     on_compile(variant[, seconds]) is called before and after a kernel variant is compiled
     or loaded from the cache (variants.compiled); driver: 'closest' hit, or 'any' (the first hit box found);
     budget: a box budget per ray (kernel_inputs), its exhaustion marked in the `unresolved` channel.
     """
     frame = Frame.empty(origins, dirs)
     h, w = frame.hit.shape
-    rects = tiles(w, h, opts.tile_size)
+    units = work_units(w, h, opts)
     if order is not None:
-        rects = [rects[i] for i in order]
-    frame.tiles_total = len(rects)
+        units = [units[i] for i in order]
+    frame.tiles_total = len(units)
     inputs = kernel_inputs(geom, opts, pixel_angle, budget)
     outs = frame.outputs()
     trace = no_trace()
     variant = variant_for(geom, opts, driver=driver)
     args = (inputs.scene, inputs.query, inputs.sizes[0], inputs.leaf_patch, outs, trace)
-    kernel = compiled("tile", variant, ((0, 0, 0, 0), origins, dirs) + args + (tile_scratch(inputs),), on_compile)
+    kernel = compiled("tile", variant, (np.zeros((0, 2), np.int32), origins, dirs) + args + (tile_scratch(inputs),),
+                      on_compile)
     frame.extras["variant"] = label(variant)
 
-    def work(rect):
+    def work(unit):
         if cancel is not None and cancel.is_set():
             return None
-        kernel(rect, origins, dirs, *args, tile_scratch(inputs))
-        return rect
+        kernel(unit.pixels, origins, dirs, *args, tile_scratch(inputs))
+        return unit.rect
 
     start = time.perf_counter()
     with ThreadPoolExecutor(max_workers=thread_count(opts)) as pool:
-        futures = [pool.submit(work, r) for r in rects]
+        futures = [pool.submit(work, u) for u in units]
         for fut in as_completed(futures):
             rect = fut.result()
             if rect is None:

@@ -1,8 +1,9 @@
-"""The per-tile kernel: primary rays of one image rectangle, writing the kernel channels.
+"""The per-tile kernel: the primary rays of one work unit (a list of pixels, a tile in some pixel
+order), writing the kernel channels.
 
-Called from worker threads (it releases the GIL), one call per tile, each with scratch of its
-own (tile_scratch), so threads share nothing but the output arrays, of which each tile writes
-only its own rectangle. Built per kernel variant (variants.py).
+Called from worker threads (it releases the GIL), one call per unit, each with scratch of its
+own (tile_scratch), so threads share nothing but the output arrays, of which each unit writes
+only its own pixels. Built per kernel variant (variants.py).
 """
 from __future__ import annotations
 
@@ -14,8 +15,8 @@ from .aggregate import WALKS, WalkStack
 from .drivers import make_search
 from .jit import njit, specialise
 from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, R_BUDGET, make_ray
-from .records import (BUDGET_FLOOR, C_EFFORT, C_NODES, C_PATCHES, C_UNRESOLVED, COUNTER_LEN, RAY_LEN, Slots,
-                      TileScratch, ray_scratch)
+from .records import (BUDGET_FLOOR, C_BOX_TESTS, C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT, C_NODES, C_PATCHES,
+                      C_SURFACES, C_UNRESOLVED, COUNTER_LEN, RAY_LEN, Slots, TileScratch, ray_scratch)
 from .subpatch import MF_LEN, MI_LEN
 from .hit_normal import hit_normal
 from .trim_kernel import MAX_SPLIT_DEPTH
@@ -41,65 +42,69 @@ def tile_scratch(inputs) -> TileScratch:
     return TileScratch(sl, stack, ray_scratch(max_points))
 
 
-def _render_tile(rect, origins, dirs, scene, q, slope, leaf_patch, out, trace, scratch):
+def _render_tile(pixels, origins, dirs, scene, q, slope, leaf_patch, out, trace, scratch):
     """The tile kernel template (see make_tile_kernel)."""
     lv, trims, agg = scene
     sl, stack, rs = scratch
     ray = rs.ray
     hit = rs.hit
     counts = rs.counts
-    y0, y1, x0, x1 = rect
-    for y in range(y0, y1):
-        for x in range(x0, x1):
-            dx = dirs[y, x, 0]
-            dy = dirs[y, x, 1]
-            dz = dirs[y, x, 2]
-            length = math.sqrt(dx * dx + dy * dy + dz * dz)
-            make_ray(ray, origins[y, x, 0], origins[y, x, 1], origins[y, x, 2], dx, dy, dz,
-                     0.0, 0.0, slope * length)
-            if q.budget_factor > 0.0:
-                ray[R_BUDGET] = q.budget_factor * max(q.budget_base[y, x], BUDGET_FLOOR)
-            hit[H_TIN] = math.inf
-            for k in range(COUNTER_LEN):
-                counts[k] = 0
-            walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts)  # noqa: F821
-            out.effort[y, x] = counts[C_EFFORT]
-            out.nodes[y, x] = counts[C_NODES]
-            out.patches_tested[y, x] = counts[C_PATCHES]
-            out.unresolved[y, x] = counts[C_UNRESOLVED] != 0
-            if hit[H_TIN] == math.inf:
-                out.hit[y, x] = False
-                out.t[y, x] = math.inf
-                out.patch[y, x] = -1
-                for c in range(3):
-                    out.position[y, x, c] = math.nan
-                    out.box_min[y, x, c] = math.nan
-                    out.box_max[y, x, c] = math.nan
-                    out.normal[y, x, c] = 0.0
-                out.uv[y, x, 0] = math.nan
-                out.uv[y, x, 1] = math.nan
-                continue
-            out.hit[y, x] = True
-            out.patch[y, x] = leaf_patch[int(hit[H_PATCH])]
-            along = 0.0
+    for i in range(pixels.shape[0]):
+        y = pixels[i, 0]
+        x = pixels[i, 1]
+        dx = dirs[y, x, 0]
+        dy = dirs[y, x, 1]
+        dz = dirs[y, x, 2]
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
+        make_ray(ray, origins[y, x, 0], origins[y, x, 1], origins[y, x, 2], dx, dy, dz,
+                 0.0, 0.0, slope * length)
+        if q.budget_factor > 0.0:
+            ray[R_BUDGET] = q.budget_factor * max(q.budget_base[y, x], BUDGET_FLOOR)
+        hit[H_TIN] = math.inf
+        for k in range(COUNTER_LEN):
+            counts[k] = 0
+        walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts)  # noqa: F821
+        out.effort[y, x] = counts[C_EFFORT]
+        out.nodes[y, x] = counts[C_NODES]
+        out.patches_tested[y, x] = counts[C_PATCHES]
+        out.surfaces_tested[y, x] = counts[C_SURFACES]
+        out.box_tests[y, x] = counts[C_BOX_TESTS] + counts[C_EFFORT]
+        out.cache_hits[y, x] = counts[C_CACHE_HITS]
+        out.cache_misses[y, x] = counts[C_CACHE_MISSES]
+        out.unresolved[y, x] = counts[C_UNRESOLVED] != 0
+        if hit[H_TIN] == math.inf:
+            out.hit[y, x] = False
+            out.t[y, x] = math.inf
+            out.patch[y, x] = -1
             for c in range(3):
-                lo = hit[H_LO + c]
-                hi = hit[H_HI + c]
-                centre = 0.5 * (lo + hi)
-                out.box_min[y, x, c] = lo
-                out.box_max[y, x, c] = hi
-                out.position[y, x, c] = centre
-                along += (centre - ray[c]) * ray[3 + c]
-            # t of the ray point nearest the box centre, kept inside the box's slab interval.
-            out.t[y, x] = min(max(along / (length * length), hit[H_TIN]), hit[H_TOUT])
-            p = int(hit[H_PATCH])
-            domain = trims.domain
-            out.uv[y, x, 0] = domain[p, 0] + hit[H_U] * (domain[p, 1] - domain[p, 0])
-            out.uv[y, x, 1] = domain[p, 2] + hit[H_V] * (domain[p, 3] - domain[p, 2])
-            hit_normal(hit, lv.ctrl, lv.pstart, lv.deg_u, lv.deg_v, lv.rational, ray, rs.pts, rs.scratch,
-                       rs.work, rs.normal)
-            for c in range(3):
-                out.normal[y, x, c] = rs.normal[c]
+                out.position[y, x, c] = math.nan
+                out.box_min[y, x, c] = math.nan
+                out.box_max[y, x, c] = math.nan
+                out.normal[y, x, c] = 0.0
+            out.uv[y, x, 0] = math.nan
+            out.uv[y, x, 1] = math.nan
+            continue
+        out.hit[y, x] = True
+        out.patch[y, x] = leaf_patch[int(hit[H_PATCH])]
+        along = 0.0
+        for c in range(3):
+            lo = hit[H_LO + c]
+            hi = hit[H_HI + c]
+            centre = 0.5 * (lo + hi)
+            out.box_min[y, x, c] = lo
+            out.box_max[y, x, c] = hi
+            out.position[y, x, c] = centre
+            along += (centre - ray[c]) * ray[3 + c]
+        # t of the ray point nearest the box centre, kept inside the box's slab interval.
+        out.t[y, x] = min(max(along / (length * length), hit[H_TIN]), hit[H_TOUT])
+        p = int(hit[H_PATCH])
+        domain = trims.domain
+        out.uv[y, x, 0] = domain[p, 0] + hit[H_U] * (domain[p, 1] - domain[p, 0])
+        out.uv[y, x, 1] = domain[p, 2] + hit[H_V] * (domain[p, 3] - domain[p, 2])
+        hit_normal(hit, lv.ctrl, lv.pstart, lv.deg_u, lv.deg_v, lv.rational, ray, rs.pts, rs.scratch,
+                   rs.work, rs.normal)
+        for c in range(3):
+            out.normal[y, x, c] = rs.normal[c]
 
 
 def _walk_of(variant):
@@ -108,10 +113,11 @@ def _walk_of(variant):
 
 
 def make_tile_kernel(variant):
-    """render_tile(rect, origins, dirs, scene, q, slope, leaf_patch, out, trace, scratch) for one
+    """render_tile(pixels, origins, dirs, scene, q, slope, leaf_patch, out, trace, scratch) for one
     variant.
 
-    rect: (y0, y1, x0, x1); origins/dirs: (H, W, 3) float64 rays as traced. scene: (lv, trims,
+    pixels: (k, 2) int32 (row, column) of the unit's pixels, in the order they are traced;
+    origins/dirs: (H, W, 3) float64 rays as traced. scene: (lv, trims,
     agg) records; q: records.Query; slope: the threshold of detail per unit distance (adaptive
     criterion; 0 otherwise); q's budget fields bound each ray's boxes (the float64 reference).
     The kernel's patches are leaves, and leaf_patch maps them to scene
