@@ -87,22 +87,39 @@ def tiles(width: int, height: int, size: int):
 @dataclass(frozen=True)
 class Unit:
     """One call of the tile kernel: pixels (k, 2) int32 (row, column) in the order they are traced,
-    and the rectangle (y0, y1, x0, x1) that holds them (what a display refreshes)."""
+    grouped into ray bundles: bundle i is pixels[blocks[i]:blocks[i + 1]] (blocks (nb + 1,) int32;
+    one pixel each for the 1x1 bundle); and the rectangle (y0, y1, x0, x1) that holds them (what a
+    display refreshes)."""
 
     pixels: np.ndarray
+    blocks: np.ndarray
     rect: tuple
 
 
-def rect_pixels(rect) -> np.ndarray:
-    """The pixels of a rectangle, row by row, (k, 2) int32."""
+def bundle_shape(opts: Options) -> tuple:
+    """(columns, rows) of a ray bundle."""
+    cols, rows = opts.bundle.split("x")
+    return int(cols), int(rows)
+
+
+def rect_blocks(rect, cols: int = 1, rows: int = 1):
+    """The pixels of a rectangle in bundles of cols x rows (cut at its edges), bundle by bundle in
+    rows, row by row within a bundle: (pixels (k, 2) int32, blocks (nb + 1,) int32)."""
     y0, y1, x0, x1 = rect
-    ys, xs = np.mgrid[y0:y1, x0:x1]
-    return np.ascontiguousarray(np.stack([ys.ravel(), xs.ravel()], axis=1), np.int32)
+    pixels, blocks = [], [0]
+    for by in range(y0, y1, rows):
+        for bx in range(x0, x1, cols):
+            ys, xs = np.mgrid[by:min(by + rows, y1), bx:min(bx + cols, x1)]
+            pixels.append(np.stack([ys.ravel(), xs.ravel()], axis=1))
+            blocks.append(blocks[-1] + ys.size)
+    return (np.ascontiguousarray(np.concatenate(pixels), np.int32) if pixels else np.zeros((0, 2), np.int32),
+            np.asarray(blocks, np.int32))
 
 
 def work_units(width: int, height: int, opts: Options) -> list:
     """The image's work units in the order they are handed out: tiles, row by row."""
-    return [Unit(rect_pixels(r), r) for r in tiles(width, height, opts.tile_size)]
+    shape = bundle_shape(opts)
+    return [Unit(*rect_blocks(r, *shape), r) for r in tiles(width, height, opts.tile_size)]
 
 
 @dataclass(frozen=True)
