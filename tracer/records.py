@@ -62,8 +62,9 @@ TRACE_F, TRACE_I = 11, 3
 # Per-ray scratch of the tile kernel: ray and hit records, counters, normal evaluation.
 RayScratch = namedtuple("RayScratch", "ray hit counts pts scratch work normal")
 
-# A kernel call's scratch: Slots, the aggregate's walk stack (aggregate.WalkStack), RayScratch.
-TileScratch = namedtuple("TileScratch", "slots stack ray")
+# A kernel call's scratch: Slots, the aggregate's walk stack (aggregate.WalkStack), RayScratch,
+# and the ray bundle's records (bundle.BundleRays; one ray's worth where rays go alone).
+TileScratch = namedtuple("TileScratch", "slots stack ray bundle")
 
 
 def no_trace() -> Trace:

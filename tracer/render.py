@@ -125,7 +125,8 @@ def work_units(width: int, height: int, opts: Options) -> list:
 @dataclass(frozen=True)
 class KernelInputs:
     """What the kernels take for one frame: the scene records (Leaves, Trims, aggregate), the
-    query, the scratch sizes (threshold-of-detail slope, points, walk stack, trim points) and the
+    query, the scratch sizes (threshold-of-detail slope, points, walk stack, trim points, rays of a
+    bundle) and the
     leaf-to-scene-patch map."""
 
     scene: tuple
@@ -137,7 +138,7 @@ class KernelInputs:
 NO_BUDGET = np.zeros((1, 1), np.int32)
 # Coherence option values whose code is still being written this session (issue 12): refused in
 # one line rather than ignored. Each entry goes when its feature lands.
-NOT_YET = {"accel": ("kdtree", "grid"), "bundle": ("2x2", "4x2", "2x4", "4x4", "8x8"), "cache": (True,),
+NOT_YET = {"accel": ("kdtree", "grid"), "cache": (True,),
            "order": ("peano", "itembuffer")}
 
 
@@ -160,7 +161,8 @@ def kernel_inputs(geom: Geometry, opts: Options, pixel_angle: float, budget=None
     trims = Trims(*geom.trims_for(opts.trims))
     factor, base = (0.0, NO_BUDGET) if budget is None else (float(budget[0]), np.ascontiguousarray(budget[1], np.int32))
     query = Query(criterion, param, SPLIT_CODE[opts.split], geom.max_depth, geom.bits, factor, base)
-    sizes = (float(slope), max(geom.max_points, 16), walk_stack(geom.bvh), max(geom.trim_points, 2))
+    cols, rows = bundle_shape(opts)
+    sizes = (float(slope), max(geom.max_points, 16), walk_stack(geom.bvh), max(geom.trim_points, 2), cols * rows)
     return KernelInputs((leaves, trims, bvh_nodes(geom.bvh)), query, sizes, geom.leaf_patch)
 
 
@@ -191,14 +193,14 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     trace = no_trace()
     variant = variant_for(geom, opts, driver=driver)
     args = (inputs.scene, inputs.query, inputs.sizes[0], inputs.leaf_patch, outs, trace)
-    kernel = compiled("tile", variant, (np.zeros((0, 2), np.int32), origins, dirs) + args + (tile_scratch(inputs),),
-                      on_compile)
+    no_pixels = (np.zeros((0, 2), np.int32), np.zeros(1, np.int32))
+    kernel = compiled("tile", variant, no_pixels + (origins, dirs) + args + (tile_scratch(inputs),), on_compile)
     frame.extras["variant"] = label(variant)
 
     def work(unit):
         if cancel is not None and cancel.is_set():
             return None
-        kernel(unit.pixels, origins, dirs, *args, tile_scratch(inputs))
+        kernel(unit.pixels, unit.blocks, origins, dirs, *args, tile_scratch(inputs))
         return unit.rect
 
     start = time.perf_counter()

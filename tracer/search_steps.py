@@ -184,19 +184,31 @@ def judge(sl, a, pa, lv, ray, q):
 
 
 @njit(cache=True, nogil=True, inline='always')
+def hull_accepts(sl, a, pa, ray, q):
+    """Does the ray meet the control hull of slot a, which met the criterion? At the depth cap
+    the precision is spent: accept rather than reject (a rejection there would send the search
+    through every branch)."""
+    return sl.mi[a, I_DEPTH] >= q.max_depth or hull_hit(sl, a, pa, ray)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def trim_accepts(sl, a, pa, trims):
+    """Does slot a's parameter centre lie in the kept region (no trims, or decided kept: yes)?"""
+    if trims.patch_trim[pa.p] < 0 or sl.mi[a, I_TRIM] != 0:
+        return True
+    mf = sl.mf
+    u, v = _domain_point(trims.domain, pa.p, 0.5 * (mf[a, M_U0] + mf[a, M_U1]), 0.5 * (mf[a, M_V0] + mf[a, M_V1]))
+    return trim_inside(trims.patch_trim[pa.p], u, v, trims.seg_points, trims.seg_start, trims.surf_seg_start,
+                       trims.start_inside, sl.trim_h, sl.trim_m)
+
+
+@njit(cache=True, nogil=True, inline='always')
 def accept(sl, a, pa, ray, q, trims, has_trims):
     """Is slot a, which met the criterion, a hit? Its control hull must meet the ray and its
-    parameter centre lie in the kept region. At the depth cap the precision is spent: accept
-    rather than reject (a rejection there would send the search through every branch)."""
-    if sl.mi[a, I_DEPTH] >= q.max_depth:
-        found = True
-    else:
-        found = hull_hit(sl, a, pa, ray)
-    if has_trims and found and trims.patch_trim[pa.p] >= 0 and sl.mi[a, I_TRIM] == 0:
-        mf = sl.mf
-        u, v = _domain_point(trims.domain, pa.p, 0.5 * (mf[a, M_U0] + mf[a, M_U1]), 0.5 * (mf[a, M_V0] + mf[a, M_V1]))
-        found = trim_inside(trims.patch_trim[pa.p], u, v, trims.seg_points, trims.seg_start, trims.surf_seg_start,
-                            trims.start_inside, sl.trim_h, sl.trim_m)
+    parameter centre lie in the kept region."""
+    found = hull_accepts(sl, a, pa, ray, q)
+    if has_trims and found:
+        found = trim_accepts(sl, a, pa, trims)
     return found
 
 
@@ -244,17 +256,16 @@ def tighten(sl, a, pa, lv):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def subdivide(sl, a, sp, pa, lv, ray, q, t_max, d_crit, shrank, trace, tracing, has_general):
-    """Halve slot a (stack position sp; tightened first) and push the halves that stay
-    candidates, the near one on top. Returns the new stack height."""
+def halve(sl, a, b, pa, ray, q, d_crit, shrank, has_general):
+    """Halve slot a (tightened first) into a and b, each with its widened box and its place in
+    the tree: the longer direction or the ray's ('cross') while the box shrinks, else the other
+    direction than last time. Returns the direction (0 u, 1 v)."""
     mf = sl.mf
     mi = sl.mi
-    order = sl.order
     if shrank:
         direction = split_direction(sl, a, pa, ray, q.split_mode)
     else:
         direction = 1 - mi[a, I_LAST] if mi[a, I_LAST] >= 0 else 0
-    b = order[sp + 1]
     split(sl, a, b, pa, direction, has_general)
     stalled = 0 if shrank else 1
     depth = mi[a, I_DEPTH]
@@ -265,6 +276,17 @@ def subdivide(sl, a, sp, pa, lv, ray, q, t_max, d_crit, shrank, trace, tracing, 
         mi[child, I_DEPTH] = depth + 1
         mi[child, I_STALLED] = stalled
         mi[child, I_LAST] = direction
+    return direction
+
+
+@njit(cache=True, nogil=True, inline='always')
+def subdivide(sl, a, sp, pa, lv, ray, q, t_max, d_crit, shrank, trace, tracing, has_general):
+    """Halve slot a (stack position sp; tightened first) and push the halves that stay
+    candidates, the near one on top. Returns the new stack height."""
+    mf = sl.mf
+    order = sl.order
+    b = order[sp + 1]
+    direction = halve(sl, a, b, pa, ray, q, d_crit, shrank, has_general)
     alive_a = open_child(sl, a, pa, lv, ray, t_max, trace, tracing)
     alive_b = open_child(sl, b, pa, lv, ray, t_max, trace, tracing)
     # Push the far half below the near one; only live halves count. Selects, not branches:

@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from .aggregate import WALKS, WalkStack
+from .bundle import ONE, ZERO, bundle_rays, make_bundle_search, make_bvh_bundle_walk
 from .drivers import make_search
 from .jit import njit, specialise
 from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, R_BUDGET, make_ray
@@ -27,7 +28,7 @@ def tile_scratch(inputs) -> TileScratch:
     working dtype, the aggregate's walk stack and the per-ray records. Made here, in numpy, so
     the kernels allocate nothing (no reference counting, and no allocating kernel to compile)."""
     lv = inputs.scene[0]
-    _, max_points, stack_nodes, trim_points = inputs.sizes
+    _, max_points, stack_nodes, trim_points, bundle = inputs.sizes
     slots = inputs.query.max_depth + 2
     buf = np.zeros((slots, 4, max_points), lv.ctrl.dtype)
     if buf.dtype == np.float64:
@@ -39,72 +40,102 @@ def tile_scratch(inputs) -> TileScratch:
                np.zeros(RAY_LEN), np.zeros((4, max_points)),
                np.zeros((MAX_SPLIT_DEPTH + 4, trim_points, 3)), np.zeros((MAX_SPLIT_DEPTH + 4, 6)), buf64)
     stack = WalkStack(np.zeros(stack_nodes, np.int32), np.zeros(stack_nodes))
-    return TileScratch(sl, stack, ray_scratch(max_points))
+    return TileScratch(sl, stack, ray_scratch(max_points), bundle_rays(bundle, slots, stack_nodes))
 
 
-def _render_tile(pixels, origins, dirs, scene, q, slope, leaf_patch, out, trace, scratch):
+@njit(cache=True, nogil=True, _nrt=False)
+def write_pixel(out, y, x, ray, hit, counts, length, lv, trims, leaf_patch, rs):
+    """Pixel (y, x)'s kernel channels from its ray's hit record and counters (length: |direction|;
+    rs: records.RayScratch for the normal's evaluation)."""
+    out.effort[y, x] = counts[C_EFFORT]
+    out.nodes[y, x] = counts[C_NODES]
+    out.patches_tested[y, x] = counts[C_PATCHES]
+    out.surfaces_tested[y, x] = counts[C_SURFACES]
+    out.box_tests[y, x] = counts[C_BOX_TESTS] + counts[C_EFFORT]
+    out.cache_hits[y, x] = counts[C_CACHE_HITS]
+    out.cache_misses[y, x] = counts[C_CACHE_MISSES]
+    out.unresolved[y, x] = counts[C_UNRESOLVED] != 0
+    if hit[H_TIN] == math.inf:
+        out.hit[y, x] = False
+        out.t[y, x] = math.inf
+        out.patch[y, x] = -1
+        for c in range(3):
+            out.position[y, x, c] = math.nan
+            out.box_min[y, x, c] = math.nan
+            out.box_max[y, x, c] = math.nan
+            out.normal[y, x, c] = 0.0
+        out.uv[y, x, 0] = math.nan
+        out.uv[y, x, 1] = math.nan
+        return
+    out.hit[y, x] = True
+    out.patch[y, x] = leaf_patch[int(hit[H_PATCH])]
+    along = 0.0
+    for c in range(3):
+        lo = hit[H_LO + c]
+        hi = hit[H_HI + c]
+        centre = 0.5 * (lo + hi)
+        out.box_min[y, x, c] = lo
+        out.box_max[y, x, c] = hi
+        out.position[y, x, c] = centre
+        along += (centre - ray[c]) * ray[3 + c]
+    # t of the ray point nearest the box centre, kept inside the box's slab interval.
+    out.t[y, x] = min(max(along / (length * length), hit[H_TIN]), hit[H_TOUT])
+    p = int(hit[H_PATCH])
+    domain = trims.domain
+    out.uv[y, x, 0] = domain[p, 0] + hit[H_U] * (domain[p, 1] - domain[p, 0])
+    out.uv[y, x, 1] = domain[p, 2] + hit[H_V] * (domain[p, 3] - domain[p, 2])
+    hit_normal(hit, lv.ctrl, lv.pstart, lv.deg_u, lv.deg_v, lv.rational, ray, rs.pts, rs.scratch, rs.work,
+               rs.normal)
+    for c in range(3):
+        out.normal[y, x, c] = rs.normal[c]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def start_ray(ray, hit, counts, origins, dirs, y, x, slope, q):
+    """Pixel (y, x)'s primary ray into `ray` (threshold of detail slope * |direction|, the query's
+    box budget), an empty hit before t = inf and zero counters; returns |direction|."""
+    dx = dirs[y, x, 0]
+    dy = dirs[y, x, 1]
+    dz = dirs[y, x, 2]
+    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+    make_ray(ray, origins[y, x, 0], origins[y, x, 1], origins[y, x, 2], dx, dy, dz, 0.0, 0.0, slope * length)
+    if q.budget_factor > 0.0:
+        ray[R_BUDGET] = q.budget_factor * max(q.budget_base[y, x], BUDGET_FLOOR)
+    hit[H_TIN] = math.inf
+    for k in range(COUNTER_LEN):
+        counts[k] = 0
+    return length
+
+
+def _render_tile(pixels, blocks, origins, dirs, scene, q, slope, leaf_patch, out, trace, scratch):
     """The tile kernel template (see make_tile_kernel)."""
     lv, trims, agg = scene
-    sl, stack, rs = scratch
-    ray = rs.ray
-    hit = rs.hit
-    counts = rs.counts
+    sl, stack, rs, _ = scratch
     for i in range(pixels.shape[0]):
         y = pixels[i, 0]
         x = pixels[i, 1]
-        dx = dirs[y, x, 0]
-        dy = dirs[y, x, 1]
-        dz = dirs[y, x, 2]
-        length = math.sqrt(dx * dx + dy * dy + dz * dz)
-        make_ray(ray, origins[y, x, 0], origins[y, x, 1], origins[y, x, 2], dx, dy, dz,
-                 0.0, 0.0, slope * length)
-        if q.budget_factor > 0.0:
-            ray[R_BUDGET] = q.budget_factor * max(q.budget_base[y, x], BUDGET_FLOOR)
-        hit[H_TIN] = math.inf
-        for k in range(COUNTER_LEN):
-            counts[k] = 0
-        walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts)  # noqa: F821
-        out.effort[y, x] = counts[C_EFFORT]
-        out.nodes[y, x] = counts[C_NODES]
-        out.patches_tested[y, x] = counts[C_PATCHES]
-        out.surfaces_tested[y, x] = counts[C_SURFACES]
-        out.box_tests[y, x] = counts[C_BOX_TESTS] + counts[C_EFFORT]
-        out.cache_hits[y, x] = counts[C_CACHE_HITS]
-        out.cache_misses[y, x] = counts[C_CACHE_MISSES]
-        out.unresolved[y, x] = counts[C_UNRESOLVED] != 0
-        if hit[H_TIN] == math.inf:
-            out.hit[y, x] = False
-            out.t[y, x] = math.inf
-            out.patch[y, x] = -1
-            for c in range(3):
-                out.position[y, x, c] = math.nan
-                out.box_min[y, x, c] = math.nan
-                out.box_max[y, x, c] = math.nan
-                out.normal[y, x, c] = 0.0
-            out.uv[y, x, 0] = math.nan
-            out.uv[y, x, 1] = math.nan
-            continue
-        out.hit[y, x] = True
-        out.patch[y, x] = leaf_patch[int(hit[H_PATCH])]
-        along = 0.0
-        for c in range(3):
-            lo = hit[H_LO + c]
-            hi = hit[H_HI + c]
-            centre = 0.5 * (lo + hi)
-            out.box_min[y, x, c] = lo
-            out.box_max[y, x, c] = hi
-            out.position[y, x, c] = centre
-            along += (centre - ray[c]) * ray[3 + c]
-        # t of the ray point nearest the box centre, kept inside the box's slab interval.
-        out.t[y, x] = min(max(along / (length * length), hit[H_TIN]), hit[H_TOUT])
-        p = int(hit[H_PATCH])
-        domain = trims.domain
-        out.uv[y, x, 0] = domain[p, 0] + hit[H_U] * (domain[p, 1] - domain[p, 0])
-        out.uv[y, x, 1] = domain[p, 2] + hit[H_V] * (domain[p, 3] - domain[p, 2])
-        hit_normal(hit, lv.ctrl, lv.pstart, lv.deg_u, lv.deg_v, lv.rational, ray, rs.pts, rs.scratch,
-                   rs.work, rs.normal)
-        for c in range(3):
-            out.normal[y, x, c] = rs.normal[c]
+        length = start_ray(rs.ray, rs.hit, rs.counts, origins, dirs, y, x, slope, q)
+        walk(agg, lv, trims, rs.ray, rs.hit, q, sl, stack, trace, rs.counts)  # noqa: F821
+        write_pixel(out, y, x, rs.ray, rs.hit, rs.counts, length, lv, trims, leaf_patch, rs)
+
+
+def _render_bundles(pixels, blocks, origins, dirs, scene, q, slope, leaf_patch, out, trace, scratch):
+    """The tile kernel template for ray bundles (see make_tile_kernel): each block of pixels is one
+    bundle through the aggregate and the patch searches (bundle.py)."""
+    lv, trims, agg = scene
+    sl, _, rs, br = scratch
+    for b in range(blocks.shape[0] - 1):
+        first = blocks[b]
+        active = ZERO
+        for j in range(blocks[b + 1] - first):
+            y = pixels[first + j, 0]
+            x = pixels[first + j, 1]
+            br.lengths[j] = start_ray(br.rays[j], br.hits[j], br.counts[j], origins, dirs, y, x, slope, q)
+            active |= ONE << np.uint64(j)
+        walk(agg, lv, trims, q, sl, br, active)  # noqa: F821
+        for j in range(blocks[b + 1] - first):
+            write_pixel(out, pixels[first + j, 0], pixels[first + j, 1], br.rays[j], br.hits[j], br.counts[j],
+                        br.lengths[j], lv, trims, leaf_patch, rs)
 
 
 def _walk_of(variant):
@@ -113,10 +144,11 @@ def _walk_of(variant):
 
 
 def make_tile_kernel(variant):
-    """render_tile(pixels, origins, dirs, scene, q, slope, leaf_patch, out, trace, scratch) for one
-    variant.
+    """render_tile(pixels, blocks, origins, dirs, scene, q, slope, leaf_patch, out, trace, scratch)
+    for one variant.
 
-    pixels: (k, 2) int32 (row, column) of the unit's pixels, in the order they are traced;
+    pixels: (k, 2) int32 (row, column) of the unit's pixels, in the order they are traced; blocks:
+    the bundles' offsets into them (render.Unit; bundle variants trace each block as one bundle);
     origins/dirs: (H, W, 3) float64 rays as traced. scene: (lv, trims,
     agg) records; q: records.Query; slope: the threshold of detail per unit distance (adaptive
     criterion; 0 otherwise); q's budget fields bound each ray's boxes (the float64 reference).
@@ -125,13 +157,16 @@ def make_tile_kernel(variant):
     surface (NURBS). scratch: the calling thread's TileScratch (tile_scratch).
     """
     # The pixel loop allocates nothing: no reference counts (see drivers).
+    if variant.bundle:
+        walk = make_bvh_bundle_walk(make_bundle_search(variant))
+        return njit(cache=True, nogil=True, _nrt=False)(specialise(_render_bundles, walk=walk))
     return njit(cache=True, nogil=True, _nrt=False)(specialise(_render_tile, walk=_walk_of(variant)))
 
 
 def _trace_one_ray(ray, hit, scene, q, trace, counts, scratch):
     """The one-ray kernel template (see make_ray_kernel)."""
     lv, trims, agg = scene
-    sl, stack, _ = scratch
+    sl, stack, _, _ = scratch
     walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts)  # noqa: F821
 
 

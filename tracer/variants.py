@@ -2,7 +2,8 @@
 
 A variant fixes what a scene needs: precision, which patch kinds occur (rational; integral
 bicubic, bilinear or other degrees), trims present, tracing on or off, the query driver
-(closest or any hit) and the aggregate kind. Its flags are constants of the kernels' closures,
+(closest or any hit), the aggregate kind and ray bundles (primary rays through the BVH: bundle.py;
+elsewhere each ray goes alone). Its flags are constants of the kernels' closures,
 so an integral bicubic scene never compiles or branches through rational or trimming code.
 Kernels are built once per variant in a process and compiled (or loaded from numba's disk
 cache) explicitly before the first tile, so compiling is its own, timed step: COMPILED
@@ -17,7 +18,7 @@ from collections import namedtuple
 import numba
 import numpy as np
 
-Variant = namedtuple("Variant", "precision rational cubic linear general trims trace driver accel")
+Variant = namedtuple("Variant", "precision rational cubic linear general trims trace driver accel bundle")
 
 COMPILED: dict = {}  # (kernel kind, Variant) -> {"seconds": s, "cached": bool}
 _BUILT: dict = {}
@@ -38,14 +39,15 @@ def variant_for(geom, opts, *, trace: bool = False, driver: str = "closest", acc
     # compiles); other degrees (the generic split) and rational patches stay flags of their own.
     fast = bool((cubic | linear).any())
     return Variant(geom.precision, bool(rational.any()), fast, fast,
-                   bool((integral & ~cubic & ~linear).any()), trimmed, bool(trace), driver, accel)
+                   bool((integral & ~cubic & ~linear).any()), trimmed, bool(trace), driver, accel,
+                   opts.bundle != "1x1" and not trace and driver == "closest" and accel == "bvh")
 
 
 def label(variant: Variant) -> str:
     """A short readable name, e.g. 'f32 bicubic+bilinear closest bvh'."""
     kinds = [k for k, on in (("rational", variant.rational), ("bicubic", variant.cubic),
                              ("bilinear", variant.linear), ("general", variant.general)) if on]
-    extras = [k for k, on in (("trims", variant.trims), ("trace", variant.trace)) if on]
+    extras = [k for k, on in (("trims", variant.trims), ("trace", variant.trace), ("bundles", variant.bundle)) if on]
     return " ".join([variant.precision, "+".join(kinds) or "empty"] + extras + [variant.driver, variant.accel])
 
 

@@ -1,0 +1,324 @@
+"""Ray bundles (Dammertz 2.5.1): the rays of a block of pixels share one subdivision stack.
+
+A bundle is up to 64 rays, one bit each in a uint64 mask. Every sub-patch on the stack carries
+the mask of the rays still active in it, and each ray its own slab interval there (tin, tout);
+a ray drops out where it misses a box, where its own closest hit prunes the box, or where the
+hull tests drop a half for it. Each ray keeps its own hit, its own criterion (its threshold of
+detail, its hit box on the grid) and its own counters, so what a ray reports is what it would
+report alone: the boxes are the same, split in the same direction (the box alone decides it
+under the `length` split and the float, fixed and mantissa criteria; otherwise the first ray
+still active decides for the bundle), tested by the same steps. Only the order in which the
+bundle visits two halves both of its rays meet differs (the half nearer to the bundle's nearest
+ray first), which can change which of two boxes holding a crossing at the same t is reported.
+
+The bundle walks the BVH as one: a node stays on the stack while any of its rays meets it.
+Bundles serve primary rays (closest hit); they carry no box budget and record no trace.
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numba
+import numpy as np
+
+from .aggregate import BvhNodes  # noqa: F401 (the record the walk reads)
+from .drivers import WIDE_BITS, wide_leaves, wide_slots
+from .jit import njit, specialise
+from .ray import H_TIN, RAY_LEN, R_O, slab
+from .records import C_BOX_TESTS, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES
+from .search_steps import halve, hull_accepts, judge, report, root, tighten, trim_accepts, trim_state
+from .subpatch import M_OX, M_TIN, M_TOUT, hull_hit, hull_off_plane, patch_info, seam_plane
+
+ONE = np.uint64(1)
+ZERO = np.uint64(0)
+MAX_RAYS = 64
+
+# A bundle's rays: rays and lrays (K, RAY_LEN) (lrays: moved into the searched patch's frame),
+# hits (K, HIT_LEN), counts (K, COUNTER_LEN) int64, lengths (K,) |direction|; per slot of the
+# sub-patch stack: mask (S,) uint64 and the rays' slab intervals tin, tout (S, K); the BVH walk's
+# stack: node (D,) int32, node_mask (D,) uint64, node_tin (D, K).
+BundleRays = namedtuple("BundleRays", "rays lrays hits counts lengths mask tin tout node node_mask node_tin")
+
+if numba.config.DISABLE_JIT:
+    def _trailing_zeros(m):
+        return (int(m) & -int(m)).bit_length() - 1
+else:
+    from numba.cpython.unsafe.numbers import trailing_zeros as _trailing_zeros
+
+
+@njit(cache=True, nogil=True, inline='always')
+def lowest_bit(m):
+    """Index (int64: numba would unify a uint64 with int64 indices to a float) of the lowest set
+    bit of a nonzero mask."""
+    return np.int64(_trailing_zeros(m))
+
+
+@njit(cache=True, nogil=True, inline='always')
+def bit(r):
+    return ONE << np.uint64(r)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def add_count(counts, m, column, n):
+    """counts[r, column] += n for every ray r of mask m."""
+    while m != ZERO:
+        r = lowest_bit(m)
+        m &= m - ONE
+        counts[r, column] += n
+
+
+@njit(cache=True, nogil=True, inline='always')
+def ahead(tin, row, hits, m):
+    """The rays of m whose entry t into the box of `row` (tin[row, r]) lies before their own
+    closest hit: the others drop out of it."""
+    live = ZERO
+    while m != ZERO:
+        r = lowest_bit(m)
+        m &= m - ONE
+        if tin[row, r] < hits[r, H_TIN]:
+            live |= bit(r)
+    return live
+
+
+@njit(cache=True, nogil=True, inline='always')
+def open_rays(sl, s, br, m):
+    """Slab-test slot s's box against the rays of m (intervals into tin, tout); the rays that meet
+    it before their own closest hit."""
+    alive = ZERO
+    box = sl.box[s]
+    ox = sl.mf[s, M_OX]
+    oy = sl.mf[s, M_OX + 1]
+    oz = sl.mf[s, M_OX + 2]
+    while m != ZERO:
+        r = lowest_bit(m)
+        m &= m - ONE
+        ok, t_in, t_out = slab(box, ox, oy, oz, br.lrays[r])
+        br.tin[s, r] = t_in
+        br.tout[s, r] = t_out
+        if ok and t_in < br.hits[r, H_TIN]:
+            alive |= bit(r)
+    return alive
+
+
+@njit(cache=True, nogil=True, inline='always')
+def nearest(tin, row, m):
+    """The smallest entry t into the box of `row` (tin[row, r]) over the rays of m."""
+    t = np.inf
+    while m != ZERO:
+        r = lowest_bit(m)
+        m &= m - ONE
+        t = min(t, tin[row, r])
+    return t
+
+
+@njit(cache=True, nogil=True, inline='always')
+def bundle_subdivide(sl, a, sp, pa, br, go, first, q, d_crit, shrank, has_general):
+    """subdivide (search_steps) for the rays of `go`: halve slot a, test both halves against each
+    ray (with the single-ray hull tests where a ray meets both), push the halves some ray keeps,
+    the bundle's nearer on top. Returns the new stack height."""
+    order = sl.order
+    b = order[sp + 1]
+    direction = halve(sl, a, b, pa, br.lrays[first], q, d_crit, shrank, has_general)
+    keep_a = open_rays(sl, a, br, go)
+    keep_b = open_rays(sl, b, br, go)
+    both = keep_a & keep_b
+    while both != ZERO:  # as subdivide: the far half across the seam plane and the ray's planes first
+        r = lowest_bit(both)
+        both &= both - ONE
+        lr = br.lrays[r]
+        far = b if br.tin[a, r] <= br.tin[b, r] else a
+        near = a if far == b else b
+        w0, w1, w2 = seam_plane(sl, b, pa, direction, lr)
+        if hull_off_plane(sl, far, pa, lr, w0, w1, w2) or not hull_hit(sl, far, pa, lr):
+            if far == a:
+                keep_a &= ~bit(r)
+            else:
+                keep_b &= ~bit(r)
+        elif hull_off_plane(sl, near, pa, lr, w0, w1, w2) or not hull_hit(sl, near, pa, lr):
+            if near == a:
+                keep_a &= ~bit(r)
+            else:
+                keep_b &= ~bit(r)
+    br.mask[a] = keep_a
+    br.mask[b] = keep_b
+    if keep_a == ZERO or keep_b == ZERO:
+        order[sp] = a if keep_a != ZERO else b
+        order[sp + 1] = b if keep_a != ZERO else a
+        return sp + (0 if (keep_a | keep_b) == ZERO else 1)
+    near_a = nearest(br.tin, a, keep_a) <= nearest(br.tin, b, keep_b)
+    order[sp] = b if near_a else a
+    order[sp + 1] = a if near_a else b
+    return sp + 2
+
+
+def _bundle_search(p, lv, trims, q, sl, br, active):
+    """The bundle patch search template (specialised by make_bundle_search)."""
+    pa = patch_info(lv, p, WIDE_BITS if WIDE else q.bits, HAS_RATIONAL, HAS_CUBIC, HAS_LINEAR)  # noqa: F821
+    m = active
+    while m != ZERO:  # each ray moved into the patch's frame
+        r = lowest_bit(m)
+        m &= m - ONE
+        for k in range(RAY_LEN):
+            br.lrays[r, k] = br.rays[r, k]
+        for c in range(3):
+            br.lrays[r, R_O + c] = br.rays[r, R_O + c] - lv.frame[p, c]
+    s = root(sl, pa, lv)
+    add_count(br.counts, active, C_EFFORT, 1)
+    br.mask[s] = open_rays(sl, s, br, active)
+    sp = 1 if br.mask[s] != ZERO else 0
+    while sp > 0:
+        sp -= 1
+        a = sl.order[sp]
+        live = ahead(br.tin, a, br.hits, br.mask[a])
+        if live == ZERO:
+            continue
+        if HAS_TRIMS and trim_state(sl, a, pa, trims) < 0:  # noqa: F821
+            continue
+        go = ZERO
+        first = 0
+        d_first = 0.0
+        shrank_first = False
+        kept = -1  # the box's trim verdict, once a ray needs it
+        m = live
+        while m != ZERO:
+            r = lowest_bit(m)
+            m &= m - ONE
+            sl.mf[a, M_TIN] = br.tin[a, r]  # the steps read the ray's interval from the slot
+            sl.mf[a, M_TOUT] = br.tout[a, r]
+            stop, d_crit, shrank = judge(sl, a, pa, lv, br.lrays[r], q)
+            if not stop:
+                if go == ZERO:
+                    first, d_first, shrank_first = r, d_crit, shrank
+                go |= bit(r)
+            elif hull_accepts(sl, a, pa, br.lrays[r], q):
+                if HAS_TRIMS and kept < 0:  # noqa: F821
+                    kept = 1 if trim_accepts(sl, a, pa, trims) else 0
+                if kept != 0:
+                    report(br.hits[r], sl, a, pa, lv)
+        if go == ZERO:
+            continue
+        tighten(sl, a, pa, lv)
+        sp = bundle_subdivide(sl, a, sp, pa, br, go, first, q, d_first, shrank_first, HAS_GENERAL)  # noqa: F821
+        add_count(br.counts, go, C_EFFORT, 2)
+
+
+def _by_kind(p, lv, trims, q, sl, br, active):
+    if lv.rational[p] != 0:
+        wide(p, wide_leaves(lv), trims, q, wide_slots(sl), br, active)  # noqa: F821
+    else:
+        narrow(p, lv, trims, q, sl, br, active)  # noqa: F821
+
+
+def _rational_only(p, lv, trims, q, sl, br, active):
+    wide(p, wide_leaves(lv), trims, q, wide_slots(sl), br, active)  # noqa: F821
+
+
+def make_bundle_search(variant):
+    """search(p, lv, trims, q, sl, br, active): patch p searched for the rays of mask `active` of
+    the bundle br (BundleRays); each ray's hit shrinks as it finds closer hit boxes. Integral
+    patches in the working precision, rational ones in float64 slots (as drivers.make_search)."""
+    flags = dict(HAS_TRIMS=variant.trims)
+    kernel = njit(cache=True, nogil=True, _nrt=False)
+    narrow = None
+    if variant.cubic or variant.linear or variant.general:
+        narrow = kernel(specialise(_bundle_search, WIDE=False, HAS_RATIONAL=False, HAS_CUBIC=variant.cubic,
+                                   HAS_LINEAR=variant.linear, HAS_GENERAL=variant.general, **flags))
+    if not variant.rational:
+        return narrow
+    wide = kernel(specialise(_bundle_search, WIDE=True, HAS_RATIONAL=True, HAS_CUBIC=False, HAS_LINEAR=False,
+                             HAS_GENERAL=True, **flags))
+    dispatch = _rational_only if narrow is None else _by_kind
+    return njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(dispatch, wide=wide, narrow=narrow))
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _node_rays(node_box, node, br, top, m):
+    """Slab-test a BVH node against the rays of m (intervals into node_tin[top]); the rays that
+    meet it before their own closest hit."""
+    alive = ZERO
+    while m != ZERO:
+        r = lowest_bit(m)
+        m &= m - ONE
+        ok, t_in, _ = slab(node_box[node], 0.0, 0.0, 0.0, br.rays[r])
+        br.node_tin[top, r] = t_in
+        if ok and t_in < br.hits[r, H_TIN]:
+            alive |= bit(r)
+    return alive
+
+
+def _bvh_bundle_walk(agg, lv, trims, q, sl, br, active):
+    """The BVH walk of a bundle (template, specialised by make_bvh_bundle_walk)."""
+    node_child = agg.node_child
+    counts = br.counts
+    add_count(counts, active, C_BOX_TESTS, 1)
+    if node_child[0, 0] < 0:
+        add_count(counts, active, C_SURFACES, agg.leaf_count[0])
+    m = _node_rays(agg.node_box, 0, br, 0, active)
+    if m == ZERO:
+        return
+    br.node[0] = 0
+    br.node_mask[0] = m
+    top = 1
+    while top > 0:
+        top -= 1
+        node = br.node[top]
+        live = ahead(br.node_tin, top, br.hits, br.node_mask[top])
+        if live == ZERO:
+            continue
+        add_count(counts, live, C_NODES, 1)
+        left = node_child[node, 0]
+        if left < 0:
+            first = agg.leaf_first[node]
+            for k in range(first, first + agg.leaf_count[node]):
+                add_count(counts, live, C_PATCHES, 1)
+                search(agg.items[k], lv, trims, q, sl, br, live)  # noqa: F821
+            continue
+        right = node_child[node, 1]
+        add_count(counts, live, C_BOX_TESTS, 2)
+        for child in (left, right):
+            if node_child[child, 0] < 0:
+                add_count(counts, live, C_SURFACES, agg.leaf_count[child])
+        # Both children's intervals go where they will be popped from: the nearer on top.
+        ml = _node_rays(agg.node_box, left, br, top, live)
+        mr = _node_rays(agg.node_box, right, br, top + 1, live)
+        if ml == ZERO and mr == ZERO:
+            continue
+        if ml == ZERO or mr == ZERO:
+            only = left if ml != ZERO else right
+            br.node[top] = only
+            br.node_mask[top] = ml | mr
+            if only == right:
+                for k in range(br.node_tin.shape[1]):
+                    br.node_tin[top, k] = br.node_tin[top + 1, k]
+            top += 1
+            continue
+        if nearest(br.node_tin, top, ml) <= nearest(br.node_tin, top + 1, mr):  # left nearer: right below it
+            swap_rows(br.node_tin, top, top + 1)
+            br.node[top], br.node[top + 1] = right, left
+            br.node_mask[top], br.node_mask[top + 1] = mr, ml
+        else:
+            br.node[top], br.node[top + 1] = left, right
+            br.node_mask[top], br.node_mask[top + 1] = ml, mr
+        top += 2
+
+
+@njit(cache=True, nogil=True, inline='always')
+def swap_rows(a, i, j):
+    for k in range(a.shape[1]):
+        a[i, k], a[j, k] = a[j, k], a[i, k]
+
+
+def make_bvh_bundle_walk(search):
+    """walk(agg, lv, trims, q, sl, br, active): the bundle through the BVH, each visited leaf's
+    patches searched for the rays that reach it."""
+    return njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(_bvh_bundle_walk, search=search))
+
+
+def bundle_rays(count: int, slots: int, stack: int) -> BundleRays:
+    """A bundle's records for up to `count` rays, `slots` sub-patch slots and a walk `stack` deep."""
+    from .ray import HIT_LEN
+    from .records import COUNTER_LEN
+    return BundleRays(np.zeros((count, RAY_LEN)), np.zeros((count, RAY_LEN)), np.zeros((count, HIT_LEN)),
+                      np.zeros((count, COUNTER_LEN), np.int64), np.zeros(count), np.zeros(slots, np.uint64),
+                      np.zeros((slots, count)), np.zeros((slots, count)), np.zeros(stack, np.int32),
+                      np.zeros(stack, np.uint64), np.zeros((stack, count)))
