@@ -143,7 +143,7 @@ def test_compile_note_is_a_step_of_its_own():
 
     bar, args = Bar(), type("Args", (), {"quiet": False})()
     note = _compile_note(args, bar)
-    v = Variant("f32", False, True, False, False, False, False, "closest", "bvh", False)
+    v = Variant("f32", False, True, False, False, False, False, "closest", "bvh", False, False)
     note(v)
     assert bar.desc == "compiling the f32 bicubic closest bvh kernel"
     note(v, 12.5)

@@ -37,7 +37,7 @@ def test_specialised_copies_get_symbols_of_their_own_whatever_numba_s_counter_sa
 def test_specialised_names_are_the_same_in_every_process():
     """The name follows the kernel's key, so a fresh process finds the same cache entry."""
     from tracer.drivers import make_search
-    variant = Variant("f32", True, False, False, True, False, True, "closest", "bvh", False)
+    variant = Variant("f32", True, False, False, True, False, True, "closest", "bvh", False, False)
     code = ("from tracer.drivers import make_search; from tracer.variants import Variant; "
             f"print(make_search(Variant(*{tuple(variant)!r}), False).py_func.__qualname__)")
     here = make_search(variant, False).py_func.__qualname__

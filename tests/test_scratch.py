@@ -19,12 +19,19 @@ from tracer.tile_kernel import tile_scratch
 SCENES = ["teapot", "sphere", "plate", "random rational", "stress/degree 9x7"]
 
 
-def _poisoned(inputs):
-    scratch = tile_scratch(inputs)
-    for record in scratch:
-        for array in record:
-            if array.dtype.kind == "f":
-                array[...] = np.nan
+def _arrays(record):
+    for item in record:
+        if isinstance(item, np.ndarray):
+            yield item
+        else:  # a nested record (the cache's)
+            yield from _arrays(item)
+
+
+def _poisoned(inputs, thread_cache=None):
+    scratch = tile_scratch(inputs, thread_cache)
+    for array in _arrays(scratch):
+        if array.dtype.kind == "f":
+            array[...] = np.nan
     return scratch
 
 

@@ -18,9 +18,10 @@ from .jit import njit, specialise
 
 from .ray import H_TIN, R_BUDGET
 from .records import Leaves, Slots
-from .search_steps import HIT, MISS, PRUNED, accept, enter_frame, judge, open_child, report, root, set_event
-from .search_steps import subdivide, tighten, trace_hit, trim_state
-from .subpatch import M_TIN, patch_info
+from .search_steps import HIT, MISS, PRUNED, accept, enter_frame, halve, judge, open_child, report, root, root_at
+from .search_steps import set_event, sort_halves, subdivide, tighten, trace_hit, trim_state
+from .subpatch import I_DEPTH, I_LAST, I_STALLED, M_DPAR, M_TIN, patch_info
+from .surface_cache import S_DEPTH, S_FIRST, S_HITS, S_MISSES, copy_slot, take_pair, touch
 
 WIDE_BITS = 53  # rational patches are searched in float64 slots whatever the working precision
 
@@ -63,6 +64,107 @@ def _search(p, lv, trims, ray, hit, q, sl, trace):
     return effort
 
 
+def _cached_search(p, lv, trims, ray, hit, q, sl, trace):
+    """The patch search template with the surface-tree cache (surface_cache.py): the steps of
+    _search, on a stack of slots that are cached nodes (never freed) or working slots."""
+    cache = sl.cache
+    pa = patch_info(lv, p, WIDE_BITS if WIDE else q.bits, HAS_RATIONAL, HAS_CUBIC, HAS_LINEAR)  # noqa: F821
+    lray = enter_frame(sl, ray, lv, p)
+    first = cache.state[S_FIRST]
+    ncoord = 4 if pa.rational else 3
+    free = cache.free_slots
+    nfree = first
+    for k in range(nfree):  # every working slot is free when a search starts
+        free[k] = k
+    stack = cache.stack
+    mf = sl.mf
+    touch(cache, p)
+    s = cache.root[p]
+    if s >= 0:
+        cache.state[S_HITS] += 1
+    else:
+        cache.state[S_MISSES] += 1
+        s = take_pair(cache, p)
+        if s >= 0:
+            cache.root[p] = s
+            cache.child[s - first] = -1
+        else:  # the pool cannot hold even a root: search as without the cache
+            nfree -= 1
+            s = free[nfree]
+        root_at(sl, s, pa, lv)
+    effort = 1
+    budget = ray[R_BUDGET]
+    sp = 0
+    if open_child(sl, s, pa, lv, lray, hit[H_TIN], trace, False):
+        stack[0] = s
+        sp = 1
+    while sp > 0 and effort < budget:
+        sp -= 1
+        a = stack[sp]
+        cached = a >= first
+        if mf[a, M_TIN] >= hit[H_TIN] or (HAS_TRIMS and trim_state(sl, a, pa, trims) < 0):  # noqa: F821
+            if not cached:
+                free[nfree] = a
+                nfree += 1
+            continue
+        stop, d_crit, shrank = judge(sl, a, pa, lv, lray, q)
+        if stop:
+            if accept(sl, a, pa, lray, q, trims, HAS_TRIMS):  # noqa: F821
+                report(hit, sl, a, pa, lv)
+                if STOP_AT_FIRST:  # noqa: F821
+                    return effort
+            if not cached:
+                free[nfree] = a
+                nfree += 1
+            continue
+        effort += 2
+        kid = -1
+        if cached and sl.mi[a, I_DEPTH] < cache.state[S_DEPTH]:
+            kid = cache.child[a - first]
+            if kid < 0:  # compute the halves once, from a working copy, and keep them
+                kid = take_pair(cache, p)
+                if kid >= 0:
+                    w = free[nfree - 1]
+                    b = free[nfree - 2]
+                    copy_slot(sl, a, w, ncoord, pa.count)
+                    tighten(sl, w, pa, lv)
+                    halve(sl, w, b, pa, lray, q, d_crit, shrank, HAS_GENERAL)  # noqa: F821
+                    copy_slot(sl, w, kid, ncoord, pa.count)
+                    copy_slot(sl, b, kid + 1, ncoord, pa.count)
+                    cache.child[a - first] = kid
+                    cache.child[kid - first] = -1
+                    cache.child[kid + 1 - first] = -1
+        if kid >= 0:  # the cached halves, with this ray's view of their parent
+            for c in (kid, kid + 1):
+                mf[c, M_DPAR] = d_crit
+                sl.mi[c, I_STALLED] = 0 if shrank else 1
+            far, near, alive_far, alive_near = sort_halves(sl, kid, kid + 1, pa, lv, lray, hit[H_TIN],
+                                                           sl.mi[kid, I_LAST], trace, False)
+        else:  # computed halves in working slots
+            if cached:
+                nfree -= 1
+                w = free[nfree]
+                copy_slot(sl, a, w, ncoord, pa.count)
+                a = w
+            tighten(sl, a, pa, lv)
+            nfree -= 1
+            b = free[nfree]
+            direction = halve(sl, a, b, pa, lray, q, d_crit, shrank, HAS_GENERAL)  # noqa: F821
+            far, near, alive_far, alive_near = sort_halves(sl, a, b, pa, lv, lray, hit[H_TIN], direction, trace,
+                                                           False)
+            for c, alive in ((far, alive_far), (near, alive_near)):
+                if not alive:
+                    free[nfree] = c
+                    nfree += 1
+        if alive_far:
+            stack[sp] = far
+            sp += 1
+        if alive_near:
+            stack[sp] = near
+            sp += 1
+    return effort
+
+
 @njit(cache=True, nogil=True, inline='always')
 def wide_leaves(lv):
     """The leaves as the float64 search of rational patches reads them: float64 points and bounds."""
@@ -73,7 +175,7 @@ def wide_leaves(lv):
 @njit(cache=True, nogil=True, inline='always')
 def wide_slots(sl):
     """The thread's slots with float64 points (everything else is shared: one search at a time)."""
-    return Slots(sl.buf64, sl.box, sl.mf, sl.mi, sl.order, sl.lray, sl.w64, sl.trim_h, sl.trim_m, sl.buf64)
+    return Slots(sl.buf64, sl.box, sl.mf, sl.mi, sl.order, sl.lray, sl.w64, sl.trim_h, sl.trim_m, sl.buf64, sl.cache)
 
 
 def _by_kind(p, lv, trims, ray, hit, q, sl, trace):
@@ -100,13 +202,14 @@ def make_search(variant, any_hit: bool):
     corners, and 0.2-5 % of float64 points fell outside the hit box."""
     flags = dict(HAS_TRIMS=variant.trims, TRACING=variant.trace, STOP_AT_FIRST=any_hit)
     kernel = njit(cache=True, nogil=True, _nrt=False)
+    template = _cached_search if variant.cache else _search
     narrow = None
     if variant.cubic or variant.linear or variant.general:
-        narrow = kernel(specialise(_search, WIDE=False, HAS_RATIONAL=False, HAS_CUBIC=variant.cubic,
+        narrow = kernel(specialise(template, WIDE=False, HAS_RATIONAL=False, HAS_CUBIC=variant.cubic,
                                    HAS_LINEAR=variant.linear, HAS_GENERAL=variant.general, **flags))
     if not variant.rational:
         return narrow
-    wide = kernel(specialise(_search, WIDE=True, HAS_RATIONAL=True, HAS_CUBIC=False, HAS_LINEAR=False,
+    wide = kernel(specialise(template, WIDE=True, HAS_RATIONAL=True, HAS_CUBIC=False, HAS_LINEAR=False,
                              HAS_GENERAL=True, **flags))
     if narrow is None:
         return njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(_rational_only, wide=wide))

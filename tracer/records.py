@@ -43,8 +43,10 @@ BUDGET_FLOOR = 256
 # order (S,) uint32 stack position -> slot; lray: the ray moved into the patch's frame;
 # w64 (4, P) float64 for re-derivation; trim_h, trim_m: the trim parity's curve stack;
 # buf64 (S, 4, P) float64, the points of rational patches, which are searched in float64 whatever
-# the working precision (buf itself in float64; a (1, 4, 1) stand-in where no patch is rational).
-Slots = namedtuple("Slots", "buf box mf mi order lray w64 trim_h trim_m buf64")
+# the working precision (buf itself in float64; a (1, 4, 1) stand-in where no patch is rational);
+# cache: the thread's surface-tree cache (surface_cache.CacheRecord), whose nodes are the slots
+# past the first S of buf, box, mf, mi and buf64 (a stand-in where the cache is off).
+Slots = namedtuple("Slots", "buf box mf mi order lray w64 trim_h trim_m buf64 cache")
 
 # Per ray counters the drivers and aggregates add to (int64 array of COUNTER_LEN): sub-patch boxes
 # computed (effort), aggregate nodes (or voxels) visited, patches searched, 1 where the ray's box

@@ -7,8 +7,10 @@ viewer uploads it), and a cancel event stops the frame between tiles.
 from __future__ import annotations
 
 import os
+import queue
 import threading
 import time
+import weakref
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 
@@ -138,7 +140,7 @@ class KernelInputs:
 NO_BUDGET = np.zeros((1, 1), np.int32)
 # Coherence option values whose code is still being written this session (issue 12): refused in
 # one line rather than ignored. Each entry goes when its feature lands.
-NOT_YET = {"accel": ("kdtree", "grid"), "cache": (True,),
+NOT_YET = {"accel": ("kdtree", "grid"),
            "order": ("peano", "itembuffer")}
 
 
@@ -170,6 +172,45 @@ def thread_count(opts: Options) -> int:
     return opts.threads if opts.threads > 0 else (os.cpu_count() or 1)
 
 
+# Surface-tree caches (surface_cache.py), one per render thread, kept while the geometry and the
+# options that shape the trees stay the same: id(geometry) -> (weak reference, key, caches).
+_CACHES: dict = {}
+_CACHES_LOCK = threading.Lock()
+
+
+def thread_caches(geom: Geometry, opts: Options, inputs: KernelInputs, count: int) -> queue.SimpleQueue:
+    """`count` surface-tree caches for renders of `geom` with `opts`, each lent to one work unit
+    at a time (a queue: take one, give it back), the same ones from frame to frame."""
+    from .surface_cache import ThreadCache
+    from .tile_kernel import working_slots
+    key = (opts.criterion, opts.fixed_size, opts.pixel_fraction, opts.mantissa_ulps, opts.split, opts.trims,
+           opts.cache_mb, opts.cache_depth)
+    with _CACHES_LOCK:
+        for k in [k for k, (ref, _, _) in _CACHES.items() if ref() is None]:
+            del _CACHES[k]
+        ref, old_key, caches = _CACHES.get(id(geom), (None, None, []))
+        if ref is None or ref() is not geom or old_key != key:
+            caches = []
+        while len(caches) < count:
+            caches.append(ThreadCache(geom.n_patches, working_slots(inputs), inputs.sizes[1], geom.ctrl.dtype,
+                                      bool(np.any(geom.rational)), opts.cache_mb, opts.cache_depth))
+        _CACHES[id(geom)] = (weakref.ref(geom), key, caches)
+    lent = queue.SimpleQueue()
+    for c in caches[:count]:
+        lent.put(c)
+    return lent
+
+
+def cache_summary(geom: Geometry) -> dict | None:
+    """The geometry's surface-tree caches: searches that found a tree, that made one, nodes held,
+    bytes (summed over the render threads); None without the cache."""
+    ref, _, caches = _CACHES.get(id(geom), (None, None, []))
+    if ref is None or ref() is not geom or not caches:
+        return None
+    parts = [c.summary() for c in caches]
+    return {k: sum(p[k] for p in parts) for k in parts[0]} | {"threads": len(parts)}
+
+
 def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float, *,
                on_tile=None, cancel: threading.Event | None = None, progress=None,
                order=None, on_compile=None, driver: str = "closest", budget=None) -> Frame:
@@ -197,10 +238,17 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     kernel = compiled("tile", variant, no_pixels + (origins, dirs) + args + (tile_scratch(inputs),), on_compile)
     frame.extras["variant"] = label(variant)
 
+    caches = thread_caches(geom, opts, inputs, thread_count(opts)) if variant.cache else None
+
     def work(unit):
         if cancel is not None and cancel.is_set():
             return None
-        kernel(unit.pixels, unit.blocks, origins, dirs, *args, tile_scratch(inputs))
+        cache = caches.get() if caches is not None else None
+        try:
+            kernel(unit.pixels, unit.blocks, origins, dirs, *args, tile_scratch(inputs, cache))
+        finally:
+            if cache is not None:
+                caches.put(cache)
         return unit.rect
 
     start = time.perf_counter()

@@ -88,10 +88,15 @@ def enter_frame(sl, ray, lv, p):
 @njit(cache=True, nogil=True, inline='always')
 def root(sl, pa, lv):
     """The whole patch into the first slot, its box widened by the stored points' error."""
+    return root_at(sl, sl.order[0], pa, lv)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def root_at(sl, s, pa, lv):
+    """The whole patch into slot s (see root)."""
     buf = sl.buf
     mf = sl.mf
     mi = sl.mi
-    s = sl.order[0]
     p = pa.p
     for c in range(4 if pa.rational else 3):
         for k in range(pa.count):
@@ -280,17 +285,13 @@ def halve(sl, a, b, pa, ray, q, d_crit, shrank, has_general):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def subdivide(sl, a, sp, pa, lv, ray, q, t_max, d_crit, shrank, trace, tracing, has_general):
-    """Halve slot a (stack position sp; tightened first) and push the halves that stay
-    candidates, the near one on top. Returns the new stack height."""
+def sort_halves(sl, a, b, pa, lv, ray, t_max, direction, trace, tracing):
+    """Test the halves a and b (b the one past the seam) against the ray: (far, near, alive_far,
+    alive_near), the far half to be pushed below the near one; only live halves count."""
     mf = sl.mf
-    order = sl.order
-    b = order[sp + 1]
-    direction = halve(sl, a, b, pa, ray, q, d_crit, shrank, has_general)
     alive_a = open_child(sl, a, pa, lv, ray, t_max, trace, tracing)
     alive_b = open_child(sl, b, pa, lv, ray, t_max, trace, tracing)
-    # Push the far half below the near one; only live halves count. Selects, not branches:
-    # which half survives is as good as random, and positions sp, sp+1 keep slots {a, b}.
+    # Selects, not branches: which half survives is as good as random.
     near_a = mf[a, M_TIN] <= mf[b, M_TIN]
     far = b if near_a else a
     near = a if near_a else b
@@ -311,6 +312,18 @@ def subdivide(sl, a, sp, pa, lv, ray, q, t_max, d_crit, shrank, trace, tracing, 
             dropped = near
         if tracing and dropped >= 0:
             set_event(trace, sl, dropped, MISS)
+    return far, near, alive_far, alive_near
+
+
+@njit(cache=True, nogil=True, inline='always')
+def subdivide(sl, a, sp, pa, lv, ray, q, t_max, d_crit, shrank, trace, tracing, has_general):
+    """Halve slot a (stack position sp; tightened first) and push the halves that stay
+    candidates, the near one on top. Returns the new stack height."""
+    order = sl.order
+    b = order[sp + 1]
+    direction = halve(sl, a, b, pa, ray, q, d_crit, shrank, has_general)
+    far, near, alive_far, alive_near = sort_halves(sl, a, b, pa, lv, ray, t_max, direction, trace, tracing)
+    # Positions sp, sp + 1 keep slots {a, b}.
     order[sp] = far if alive_far else near
     order[sp + 1] = near if alive_far else far
     return sp + alive_far + alive_near

@@ -21,24 +21,39 @@ from .records import (BUDGET_FLOOR, C_BOX_TESTS, C_CACHE_HITS, C_CACHE_MISSES, C
 from .subpatch import MF_LEN, MI_LEN
 from .hit_normal import hit_normal
 from .trim_kernel import MAX_SPLIT_DEPTH
+from .surface_cache import S_HITS, S_MISSES, no_cache
+
+NO_CACHE = no_cache()
 
 
-def tile_scratch(inputs) -> TileScratch:
+def working_slots(inputs) -> int:
+    """Slots a search works in: a stack as deep as the subdivision, and two for making halves."""
+    return inputs.query.max_depth + 4
+
+
+def tile_scratch(inputs, thread_cache=None) -> TileScratch:
     """A thread's scratch for one kernel call (kernel_inputs' records): the sub-patch stack in the
     working dtype, the aggregate's walk stack and the per-ray records. Made here, in numpy, so
-    the kernels allocate nothing (no reference counting, and no allocating kernel to compile)."""
+    the kernels allocate nothing (no reference counting, and no allocating kernel to compile).
+    thread_cache: the thread's surface_cache.ThreadCache, whose arrays hold the slots, if any."""
     lv = inputs.scene[0]
     _, max_points, stack_nodes, trim_points, bundle = inputs.sizes
-    slots = inputs.query.max_depth + 2
-    buf = np.zeros((slots, 4, max_points), lv.ctrl.dtype)
-    if buf.dtype == np.float64:
-        buf64 = buf
-    else:  # rational patches are searched in float64 slots (drivers.make_search)
-        buf64 = np.zeros((slots, 4, max_points) if np.any(lv.rational) else (1, 4, 1))
-    sl = Slots(buf, np.zeros((slots, 6)), np.zeros((slots, MF_LEN)), np.zeros((slots, MI_LEN), np.int32),
+    slots = working_slots(inputs)
+    if thread_cache is not None:
+        c = thread_cache
+        buf, box, mf, mi, buf64, cache = c.buf, c.box, c.mf, c.mi, c.buf64, c.record
+    else:
+        buf = np.zeros((slots, 4, max_points), lv.ctrl.dtype)
+        if buf.dtype == np.float64:
+            buf64 = buf
+        else:  # rational patches are searched in float64 slots (drivers.make_search)
+            buf64 = np.zeros((slots, 4, max_points) if np.any(lv.rational) else (1, 4, 1))
+        box, mf, mi = np.zeros((slots, 6)), np.zeros((slots, MF_LEN)), np.zeros((slots, MI_LEN), np.int32)
+        cache = NO_CACHE
+    sl = Slots(buf, box, mf, mi,
                np.arange(slots).astype(np.uint32),  # unsigned slot indices: no negative-index fix-ups
                np.zeros(RAY_LEN), np.zeros((4, max_points)),
-               np.zeros((MAX_SPLIT_DEPTH + 4, trim_points, 3)), np.zeros((MAX_SPLIT_DEPTH + 4, 6)), buf64)
+               np.zeros((MAX_SPLIT_DEPTH + 4, trim_points, 3)), np.zeros((MAX_SPLIT_DEPTH + 4, 6)), buf64, cache)
     stack = WalkStack(np.zeros(stack_nodes, np.int32), np.zeros(stack_nodes))
     return TileScratch(sl, stack, ray_scratch(max_points), bundle_rays(bundle, slots, stack_nodes))
 
@@ -115,7 +130,11 @@ def _render_tile(pixels, blocks, origins, dirs, scene, q, slope, leaf_patch, out
         y = pixels[i, 0]
         x = pixels[i, 1]
         length = start_ray(rs.ray, rs.hit, rs.counts, origins, dirs, y, x, slope, q)
+        hits = sl.cache.state[S_HITS]
+        misses = sl.cache.state[S_MISSES]
         walk(agg, lv, trims, rs.ray, rs.hit, q, sl, stack, trace, rs.counts)  # noqa: F821
+        rs.counts[C_CACHE_HITS] = sl.cache.state[S_HITS] - hits
+        rs.counts[C_CACHE_MISSES] = sl.cache.state[S_MISSES] - misses
         write_pixel(out, y, x, rs.ray, rs.hit, rs.counts, length, lv, trims, leaf_patch, rs)
 
 

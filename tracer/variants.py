@@ -18,7 +18,7 @@ from collections import namedtuple
 import numba
 import numpy as np
 
-Variant = namedtuple("Variant", "precision rational cubic linear general trims trace driver accel bundle")
+Variant = namedtuple("Variant", "precision rational cubic linear general trims trace driver accel bundle cache")
 
 COMPILED: dict = {}  # (kernel kind, Variant) -> {"seconds": s, "cached": bool}
 _BUILT: dict = {}
@@ -40,14 +40,16 @@ def variant_for(geom, opts, *, trace: bool = False, driver: str = "closest", acc
     fast = bool((cubic | linear).any())
     return Variant(geom.precision, bool(rational.any()), fast, fast,
                    bool((integral & ~cubic & ~linear).any()), trimmed, bool(trace), driver, accel,
-                   opts.bundle != "1x1" and not trace and driver == "closest" and accel == "bvh")
+                   opts.bundle != "1x1" and not trace and driver == "closest" and accel == "bvh",
+                   opts.cache and not trace)
 
 
 def label(variant: Variant) -> str:
     """A short readable name, e.g. 'f32 bicubic+bilinear closest bvh'."""
     kinds = [k for k, on in (("rational", variant.rational), ("bicubic", variant.cubic),
                              ("bilinear", variant.linear), ("general", variant.general)) if on]
-    extras = [k for k, on in (("trims", variant.trims), ("trace", variant.trace), ("bundles", variant.bundle)) if on]
+    extras = [k for k, on in (("trims", variant.trims), ("trace", variant.trace), ("bundles", variant.bundle),
+                              ("cache", variant.cache)) if on]
     return " ".join([variant.precision, "+".join(kinds) or "empty"] + extras + [variant.driver, variant.accel])
 
 
