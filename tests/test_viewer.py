@@ -10,13 +10,16 @@ import math
 import numpy as np
 import pytest
 
-from tracer.camera import View, primary_rays
+from tracer.camera import View, primary_rays, view_of
 from tracer.colormap import to_uint8
+from tracer.geometry import prepare
 from tracer.options import Options
-from tracer.render import render
+from tracer.pixel_order import fills_rect
+from tracer.render import render, work_units
+from tracer.shade import shade
 from tracer.trace_one import trace_pixel
 from images import compare_images, read_png
-from viewer_util import (SCREENSHOT_TOLERANCE, SIZE, TEAPOT, headless, run_view, teapot,  # noqa: F401
+from viewer_util import (RUN_TIMEOUT, SCREENSHOT_TOLERANCE, SIZE, TEAPOT, headless, run_view, teapot,  # noqa: F401
                          warm_kernels, xvfb)
 
 TEAPOT_PIXEL = (64, 72)      # on the teapot's body
@@ -97,6 +100,74 @@ def test_option_widgets_know_which_fields_apply():
     assert not applies(ViewSettings(), range_lo) and applies(ViewSettings(range="manual"), range_lo)
 
 
+def run_worker(scene, opts, on_first_tile=None):
+    """One job of the viewer's render worker at SIZE, no window: [(event, payload)] up to the
+    frame. on_first_tile(events), if given, runs while the render is held after its first
+    full-resolution unit."""
+    from viewer.worker import GeometryCache, Job, RenderWorker
+    worker = RenderWorker(GeometryCache())
+    hold = worker.hold_mid_render() if on_first_tile is not None else None
+    events = []
+    try:
+        worker.submit(Job(1, scene, opts, view_of(scene), SIZE, reference=False))
+        while not events or events[-1][0] not in ("frame", "error", "cancelled"):
+            kind, _, payload = worker.events.get(timeout=RUN_TIMEOUT)
+            events.append((kind, payload))
+            if kind == "tile" and hold is not None and not hold.is_set():
+                on_first_tile(events)
+                hold.set()
+    finally:
+        worker.stop()
+    assert events[-1][0] == "frame", events[-1]
+    return events
+
+
+@pytest.mark.parametrize("order", ["scanline", "peano", "itembuffer"])
+def test_the_worker_hands_out_units_in_the_order_s_sequence(warm_kernels, teapot, order):
+    """One render thread: units are reported in the order they are handed out, which is the
+    order's own sequence (Peano: the top-left quadrant first), or for scanline the same tiles
+    from the centre out."""
+    opts = Options(order=order, tile_size=16, threads=1)
+    events = run_worker(teapot, opts)
+    rects = [unit.rect for kind, unit in events if kind == "tile"]
+    units = work_units(*SIZE, opts, prepare(teapot, "f32"), view_of(teapot))
+    assert len(rects) == len(units) == 64
+    if order == "scanline":
+        assert sorted(rects) == sorted(u.rect for u in units)
+        y0, y1, x0, x1 = rects[0]
+        assert y0 <= 64 <= y1 and x0 <= 64 <= x1  # centre out
+    else:
+        assert rects == [u.rect for u in units]
+    if order == "peano":
+        assert all(y1 <= 64 and x1 <= 64 for y0, y1, x0, x1 in rects[:16])
+
+
+def test_a_scattered_unit_paints_only_its_own_pixels(warm_kernels, teapot):
+    """Item buffer: held after its first unit, the worker's colours are that unit's shaded
+    pixels over the coarse preview, although its rect holds many pixels it does not trace."""
+    from viewer.worker import COARSE, upscale
+    want = shade(render(teapot, Options(), size=SIZE), teapot)
+    seen = {}
+
+    def first_tile(events):
+        (_, (coarse, rgb, _, _)), = [e for e in events if e[0] == "coarse"]
+        (_, (_, colour)), = [e for e in events if e[0] == "frame_start"]
+        seen.update(unit=events[-1][1], colour=colour.copy(), preview=upscale(rgb, COARSE, SIZE))
+
+    events = run_worker(teapot, Options(order="itembuffer", tile_size=16, threads=1), first_tile)
+    unit, colour, preview = seen["unit"], seen["colour"], seen["preview"]
+    assert not fills_rect(unit.pixels, unit.rect)
+    mine = np.zeros(colour.shape[:2], bool)
+    mine[unit.pixels[:, 0], unit.pixels[:, 1]] = True
+    y0, y1, x0, x1 = unit.rect
+    others = ~mine
+    others[:y0], others[y1:], others[:, :x0], others[:, x1:] = False, False, False, False
+    assert np.any(np.abs(preview - want)[others].max(axis=-1) > 0.1), "the check could not fail"
+    assert np.array_equal(colour[mine], want[mine]) and np.array_equal(colour[~mine], preview[~mine])
+    (_, (_, final)), = [e for e in events if e[0] == "frame_start"]
+    assert np.array_equal(final, want)
+
+
 def test_box_outlines_end_with_the_hit_box(teapot):
     from viewer.picking import outline_vertices
     from viewer.state import Inspection
@@ -165,25 +236,30 @@ def test_click_off_the_surface_reports_a_miss(xvfb, warm_kernels, tmp_path, teap
     assert got["reference"]["hit"] is False and got["error"] is None
 
 
-def test_changing_the_criterion_mid_render_re_renders(xvfb, warm_kernels, tmp_path, teapot):
+@pytest.mark.parametrize("name, value", [("criterion", "adaptive"), ("order", "peano")])
+def test_changing_a_traced_option_mid_render_re_renders(xvfb, warm_kernels, tmp_path, teapot, name, value):
+    """The criterion changes the image; the pixel order (a Coherence option) only how it is
+    traced, and restarts the render all the same."""
     shot = tmp_path / "view.png"
     code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--set", "tile_size=16",
-                                        "--at", "mid-render:criterion=adaptive", "--screenshot", shot], tmp_path)
+                                        "--at", f"mid-render:{name}={value}", "--screenshot", shot], tmp_path)
     assert code == 0, err
     applied = status["applied"][0]
     assert applied["phase"] == "full" and 0 < applied["tiles_done"] < applied["tiles_total"], applied
     assert status["renders"]["started"] == 2 and status["renders"]["cancelled"] >= 1
-    assert status["render"]["traced_options"]["criterion"] == "adaptive"
-    compare_images(read_png(shot), headless(teapot, Options(criterion="adaptive", tile_size=16)), tmp_path,
-                   "adaptive", SCREENSHOT_TOLERANCE)
+    assert status["render"]["traced_options"][name] == value
+    compare_images(read_png(shot), headless(teapot, Options(tile_size=16).with_(**{name: value})), tmp_path,
+                   value, SCREENSHOT_TOLERANCE)
 
 
-@pytest.mark.parametrize("when", ["mid-render", "after-render"])
-def test_display_mode_change_re_shades_without_re_tracing(xvfb, warm_kernels, tmp_path, teapot, when):
+@pytest.mark.parametrize("when, order", [("mid-render", "scanline"), ("after-render", "scanline"),
+                                         ("mid-render", "itembuffer")])
+def test_display_mode_change_re_shades_without_re_tracing(xvfb, warm_kernels, tmp_path, teapot, when, order):
     """The display mode is not traced: changed while tiles arrive (the script holds the render
-    after its first tile until the change is made) or after the frame, it never restarts it."""
+    after its first tile until the change is made) or after the frame, it never restarts it.
+    Item buffer: the pixels traced so far, scattered, are re-shaded."""
     shot = tmp_path / "view.png"
-    code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--set", "tile_size=16",
+    code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--set", "tile_size=16", "--set", f"order={order}",
                                         "--at", f"{when}:mode=normal", "--screenshot", shot], tmp_path)
     assert code == 0, err
     applied = status["applied"][0]
@@ -197,13 +273,16 @@ def test_display_mode_change_re_shades_without_re_tracing(xvfb, warm_kernels, tm
                    SCREENSHOT_TOLERANCE)
 
 
+@pytest.mark.parametrize("order", ["scanline", "itembuffer"])
 @pytest.mark.parametrize("channel", ["error", "effort"])
-def test_overlay_matches_the_cli_channel_map(xvfb, warm_kernels, tmp_path, teapot, channel):
-    """At opacity 1 the GPU-mapped overlay is the CLI's map of the same frame and reference."""
+def test_overlay_matches_the_cli_channel_map(xvfb, warm_kernels, tmp_path, teapot, channel, order):
+    """At opacity 1 the GPU-mapped overlay is the CLI's map of the same frame and reference
+    (filled unit by unit: with the item buffer, scattered pixels of the frame or the reference)."""
     from tracer.render import AOV_NAMES, reference_frame
     from tracer.stats import channel_rgb
     shot, aov = tmp_path / "view.png", tmp_path / "aov.npz"
     code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--set", f"overlay={channel}",
+                                        "--set", f"order={order}",
                                         "--set", "opacity=1", "--wait-reference", "--screenshot", shot, "--aov", aov], tmp_path)
     assert code == 0, err
     assert status["render"]["phase"] == "done" and status["render"]["error_stats"]["compared"] > 0
@@ -214,6 +293,28 @@ def test_overlay_matches_the_cli_channel_map(xvfb, warm_kernels, tmp_path, teapo
     expected, _ = channel_rgb(channel, frame, ref, vrange=(lo, hi))
     # GPU log vs numpy log10 may pick the neighbouring entry of the 256-entry map: 3 levels.
     compare_images(read_png(shot), to_uint8(expected), tmp_path, f"{channel}-overlay", 3)
+
+
+def test_itembuffer_units_appear_over_the_preview(xvfb, warm_kernels, tmp_path, teapot):
+    """order=itembuffer in the window: grabbed while the render is held after its first unit,
+    the view is the coarse preview with only that unit's scattered pixels traced; let go, the
+    render completes and shows the scanline image."""
+    from viewer.worker import COARSE, upscale
+    shot, first = tmp_path / "view.png", tmp_path / "first.png"
+    code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--set", "order=itembuffer", "--set",
+                                        "tile_size=16", "--set", "threads=1", "--screenshot", shot], tmp_path,
+                                 env={"PSRT_HOOK_SHOT": str(first)}, hooks="shot-first-tile")
+    assert code == 0, err
+    assert status["render"]["traced_options"]["order"] == "itembuffer" and status["renders"]["started"] == 1
+    compare_images(read_png(shot), headless(teapot), tmp_path, "itembuffer", SCREENSHOT_TOLERANCE)
+    opts = Options(order="itembuffer", tile_size=16)
+    coarse = render(teapot, opts, size=(SIZE[0] // COARSE, SIZE[1] // COARSE))
+    expected = upscale(shade(coarse, teapot), COARSE, SIZE)
+    unit = work_units(*SIZE, opts, prepare(teapot, "f32"), view_of(teapot))[0]
+    assert not fills_rect(unit.pixels, unit.rect)
+    rows, cols = unit.pixels[:, 0], unit.pixels[:, 1]
+    expected[rows, cols] = shade(render(teapot, Options(), size=SIZE), teapot)[rows, cols]
+    compare_images(read_png(first), to_uint8(expected), tmp_path, "itembuffer-first-unit", SCREENSHOT_TOLERANCE)
 
 
 def test_malformed_file_keeps_the_teapot_and_shows_the_error(xvfb, warm_kernels, tmp_path, teapot):

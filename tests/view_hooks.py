@@ -6,6 +6,8 @@ the machine is:
 
 - announce-render: print RENDERING on stdout once the first full-resolution tile is shown;
 - hold-render: keep the render held after that tile (the worker's mid-render hold, never set);
+- shot-first-tile: hold the render after its first full-resolution unit, grab the view to
+  $PSRT_HOOK_SHOT once the window has drawn it, then let the render go on;
 - hold-load: a scene load takes until the window has drawn HOLD_FRAMES frames showing it;
 - block-load: a scene load never ends;
 - cancel-load: once the window has drawn HOLD_FRAMES frames showing a load, its Cancel button
@@ -109,6 +111,8 @@ def install(hooks) -> None:
         if "hold-render" in _hooks and not _shot.get("held"):
             _shot["held"] = True
             self.worker.hold_mid_render()  # never set: the render stays after its first tile
+        if "shot-first-tile" in _hooks and "first_tile" not in _shot:
+            _shot["first_tile"] = self.worker.hold_mid_render()  # set once the view is grabbed
         frame(self, script_)
         _count_frame(self)
 
@@ -127,6 +131,12 @@ def install(hooks) -> None:
     def hooked_after_draw(self, viewer, fb_size):
         import os
         path = os.environ.get("PSRT_HOOK_SHOT")
+        r = viewer.state.render
+        if "shot-first-tile" in _hooks and not _shot["taken"] and r.phase == "full" and r.tiles_done >= 1:
+            from viewer.outputs import write_png
+            write_png(viewer.display.read_view(), path)  # drawn this frame, after the tile's upload
+            _shot["taken"] = True
+            _shot["first_tile"].set()
         if path and not _shot["taken"] and _frames["compiling"] >= HOLD_FRAMES // 2:
             from viewer.outputs import write_png
             write_png(viewer.display.read_window(fb_size), path)

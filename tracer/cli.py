@@ -207,7 +207,7 @@ def _import_losses(args, scene) -> None:
 # ---- commands ---------------------------------------------------------------------
 
 def cmd_render(args) -> int:
-    from .render import reference_frame, render, tiles
+    from .render import reference_frame, render, unit_count
     from .shade import shade, to_png
     from .stats import channel_image, error_stats, frame_stats
 
@@ -224,7 +224,7 @@ def cmd_render(args) -> int:
         width, height = args.size or scene.image_size or (512, 512)
         needs_ref = bool(args.error_map or args.stats or any(CHANNELS[name].needs_reference for name in maps))
         memory.check_render(width, height, reference=needs_ref, limit=args.memory_limit)
-        with _bar(len(tiles(width, height, opts.tile_size)), "render", args.quiet) as bar:
+        with _bar(unit_count(width, height, opts), "render", args.quiet) as bar:
             frame = render(scene, opts, size=(width, height), progress=bar.update,
                            on_compile=_compile_note(args, bar))
         outs.write(args.output, lambda f: to_png(shade(frame, scene, opts.mode), f))

@@ -1,8 +1,9 @@
-"""Tile-parallel rendering of primary rays into per-pixel channels.
+"""Parallel rendering of primary rays into per-pixel channels.
 
-Tiles run on a thread pool; the numba tile kernel releases the GIL, so threads
-trace in parallel. Each finished tile is reported to an optional callback (the
-viewer uploads it), and a cancel event stops the frame between tiles.
+Work units (tiles, or runs of pixels in another order: pixel_order.py) run on a thread pool;
+the numba tile kernel releases the GIL, so threads trace in parallel. Each finished unit is
+reported to an optional callback (the viewer uploads it), and a cancel event stops the frame
+between units.
 """
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ from .aggregate import bvh_nodes, walk_stack
 from .geometry import Geometry, prepare
 from .kernel_channels import CHANNEL_NAMES, Outputs, allocate
 from .options import CRITERION_CODE, SPLIT_CODE, Options
+from .pixel_order import order_units, unit_count as order_unit_count
 from .records import Leaves, Query, Trims, no_trace
 from .tile_kernel import tile_scratch
 from .variants import compiled, label, variant_for
@@ -118,10 +120,17 @@ def rect_blocks(rect, cols: int = 1, rows: int = 1):
             np.asarray(blocks, np.int32))
 
 
-def work_units(width: int, height: int, opts: Options) -> list:
-    """The image's work units in the order they are handed out: tiles, row by row."""
-    shape = bundle_shape(opts)
-    return [Unit(*rect_blocks(r, *shape), r) for r in tiles(width, height, opts.tile_size)]
+def work_units(width: int, height: int, opts: Options, geometry: Geometry | None = None,
+               view: View | None = None) -> list:
+    """The image's work units in the order they are handed out, after opts.order
+    (tracer/pixel_order.py); the item buffer projects the geometry's patch boxes through the view."""
+    boxes = geometry.patch_box if geometry is not None and opts.order == "itembuffer" else None
+    return [Unit(*u) for u in order_units(width, height, opts.order, opts.tile_size, bundle_shape(opts), boxes, view)]
+
+
+def unit_count(width: int, height: int, opts: Options) -> int:
+    """len(work_units(...)), without the scene (a progress bar's length)."""
+    return order_unit_count(width, height, opts.order, opts.tile_size, bundle_shape(opts))
 
 
 @dataclass(frozen=True)
@@ -140,8 +149,7 @@ class KernelInputs:
 NO_BUDGET = np.zeros((1, 1), np.int32)
 # Coherence option values whose code is still being written this session (issue 12): refused in
 # one line rather than ignored. Each entry goes when its feature lands.
-NOT_YET = {"accel": ("kdtree", "grid"),
-           "order": ("peano", "itembuffer")}
+NOT_YET = {"accel": ("kdtree", "grid")}
 
 
 def check_available(opts: Options) -> None:
@@ -213,19 +221,21 @@ def cache_summary(geom: Geometry) -> dict | None:
 
 def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float, *,
                on_tile=None, cancel: threading.Event | None = None, progress=None,
-               order=None, on_compile=None, driver: str = "closest", budget=None) -> Frame:
-    """Trace given primary rays (H, W, 3) tile by tile; returns the filled Frame.
+               order=None, on_compile=None, driver: str = "closest", budget=None,
+               view: View | None = None) -> Frame:
+    """Trace given primary rays (H, W, 3) unit by unit (work_units: opts.order; the item buffer
+    needs the view the rays come from); returns the filled Frame.
 
-    on_tile(frame, rect) is called from the calling thread as each work unit finishes (rect: the
-    rectangle holding its pixels); progress(n) advances a progress bar; `order` optionally permutes
-    the work units (work_units);
+    on_tile(frame, unit) is called from the calling thread as each work unit finishes (a Unit:
+    its pixels, and the rectangle holding them); progress(n) advances a progress bar; `order`
+    optionally permutes the work units (indices into work_units);
     on_compile(variant[, seconds]) is called before and after a kernel variant is compiled
     or loaded from the cache (variants.compiled); driver: 'closest' hit, or 'any' (the first hit box found);
     budget: a box budget per ray (kernel_inputs), its exhaustion marked in the `unresolved` channel.
     """
     frame = Frame.empty(origins, dirs)
     h, w = frame.hit.shape
-    units = work_units(w, h, opts)
+    units = work_units(w, h, opts, geom, view)
     if order is not None:
         units = [units[i] for i in order]
     frame.tiles_total = len(units)
@@ -237,6 +247,10 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     no_pixels = (np.zeros((0, 2), np.int32), np.zeros(1, np.int32))
     kernel = compiled("tile", variant, no_pixels + (origins, dirs) + args + (tile_scratch(inputs),), on_compile)
     frame.extras["variant"] = label(variant)
+    # what the float64 reference needs to trace in the same order (reference_frame)
+    frame.extras.update(order=opts.order, tile_size=opts.tile_size)
+    if view is not None:
+        frame.extras["view"] = view
 
     caches = thread_caches(geom, opts, inputs, thread_count(opts)) if variant.cache else None
 
@@ -249,20 +263,20 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
         finally:
             if cache is not None:
                 caches.put(cache)
-        return unit.rect
+        return unit
 
     start = time.perf_counter()
     with ThreadPoolExecutor(max_workers=thread_count(opts)) as pool:
         futures = [pool.submit(work, u) for u in units]
         for fut in as_completed(futures):
-            rect = fut.result()
-            if rect is None:
+            unit = fut.result()
+            if unit is None:
                 continue
             frame.tiles_done += 1
             if progress is not None:
                 progress(1)
             if on_tile is not None:
-                on_tile(frame, rect)
+                on_tile(frame, unit)
     frame.seconds = time.perf_counter() - start
     return frame
 
@@ -280,9 +294,7 @@ def render(scene, opts: Options = Options(), *, size=None, view: View | None = N
     if geom.precision != opts.precision:
         raise ValueError(f"geometry is {geom.precision}, options ask for {opts.precision}")
     origins, dirs = primary_rays(view, width, height, opts.precision)
-    frame = trace_rays(geom, opts, origins, dirs, view.pixel_angle(height), **kwargs)
-    frame.extras["view"] = view
-    return frame
+    return trace_rays(geom, opts, origins, dirs, view.pixel_angle(height), view=view, **kwargs)
 
 
 # The reference's box budget per ray: this many times the boxes the frame's own ray computed (at
@@ -294,8 +306,10 @@ REFERENCE_BUDGET = 16.0
 
 def reference_frame(scene, frame: Frame, geometry: Geometry | None = None, **kwargs) -> Frame:
     """The float64, float-criterion render of exactly the rays of `frame` (the error reference),
-    each ray bounded to REFERENCE_BUDGET times the boxes it cost `frame` (see `unresolved`)."""
+    each ray bounded to REFERENCE_BUDGET times the boxes it cost `frame` (see `unresolved`), in
+    the frame's pixel order and units."""
     geom = geometry if geometry is not None else prepare(scene, "f64")
-    opts = Options(criterion="float", precision="f64")
+    same_units = {k: frame.extras[k] for k in ("order", "tile_size") if k in frame.extras}
+    opts = Options(criterion="float", precision="f64", **same_units)
     return trace_rays(geom, opts, frame.ray_origin, frame.ray_dir, 0.0, budget=(REFERENCE_BUDGET, frame.effort),
-                      **kwargs)
+                      view=frame.extras.get("view"), **kwargs)

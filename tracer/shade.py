@@ -2,7 +2,8 @@
 
 Every mode returns float32 (h, w, 3) sRGB-encoded values in [0, 1], for the
 whole image or one tile rectangle (y0, y1, x0, x1), so the viewer can upload a
-tile as it finishes and the CLI can write the same pixels to a PNG unchanged.
+tile as it finishes and the CLI can write the same pixels to a PNG unchanged;
+or (k, 3) for a list of pixels (a work unit scattered over the image).
 
 - shaded: Lambert + Phong in linear light, then the sRGB transfer curve. Every
   light counts as a point at its centre, without shadows or distance falloff;
@@ -111,18 +112,24 @@ def depth_limits(frame, scene=None, rect=None):
     return float(dist.min()), float(dist.max())
 
 
-def shade(frame, scene, mode: str = "shaded", rect=None, *, depth_range=None) -> np.ndarray:
+def shade(frame, scene, mode: str = "shaded", rect=None, *, pixels=None, depth_range=None) -> np.ndarray:
     """Display colours of `frame` in `mode`, (h, w, 3) float32 sRGB in [0, 1].
 
     rect: (y0, y1, x0, x1) to shade one tile; default the whole image.
+    pixels: (k, 2) (row, column) to shade only those, (k, 3), as the tiles holding them have them.
     depth_range: (near, far) distances for mode 'depth' (default: see depth_limits).
     """
     if mode not in MODES:
         raise ValueError(f"unknown display mode {mode!r} (known: {', '.join(MODES)})")
     height, width = frame.hit.shape
-    y0, y1, x0, x1 = rect if rect is not None else (0, height, 0, width)
-    sl = (slice(y0, y1), slice(x0, x1))
-    out = background(height, y0, y1, x1 - x0)
+    if pixels is not None:
+        sl = (pixels[:, 0], pixels[:, 1])
+        out = background(height, 0, height, 1)[pixels[:, 0], 0]
+        rect = (0, height, 0, width)  # a part of the image: the depth limits every tile has
+    else:
+        y0, y1, x0, x1 = rect if rect is not None else (0, height, 0, width)
+        sl = (slice(y0, y1), slice(x0, x1))
+        out = background(height, y0, y1, x1 - x0)
     hit = frame.hit[sl]
     if not hit.any():
         return out

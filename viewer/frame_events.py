@@ -10,6 +10,7 @@ import queue
 import time
 
 from tracer import colormap
+from tracer.pixel_order import fills_rect
 from tracer.stats import error_stats, frame_stats
 
 from .state import RenderState
@@ -28,6 +29,7 @@ class EventSink:
         self.shaded_mode = None   # display mode of the colours in the texture
         self.reshading = None
         self.range_time = 0.0
+        self.pending = {}         # texture ("colour", "overlay") -> rect to upload when the drain ends
 
     # --- requests -------------------------------------------------------------------------
     def desired_key(self):
@@ -69,19 +71,42 @@ class EventSink:
     # --- worker events --------------------------------------------------------------------
     def drain(self) -> None:
         deadline = time.perf_counter() + DRAIN_SECONDS
-        while time.perf_counter() < deadline:
-            try:
-                kind, job, payload = self.v.worker.events.get_nowait()
-            except queue.Empty:
-                return
-            if kind == "compiling":  # the worker's, whichever job waits on it
-                self.v.state.compiling = payload  # (variant label, since) or None when done
-                continue
-            if job != self.v.state.render.job:
-                if kind == "cancelled":
-                    self.v.state.renders_cancelled += 1
-                continue
-            getattr(self, "_on_" + kind)(payload)
+        try:
+            while time.perf_counter() < deadline:
+                try:
+                    kind, job, payload = self.v.worker.events.get_nowait()
+                except queue.Empty:
+                    return
+                if kind == "compiling":  # the worker's, whichever job waits on it
+                    self.v.state.compiling = payload  # (variant label, since) or None when done
+                    continue
+                if job != self.v.state.render.job:
+                    if kind == "cancelled":
+                        self.v.state.renders_cancelled += 1
+                    continue
+                getattr(self, "_on_" + kind)(payload)
+        finally:
+            self._upload_pending()
+
+    def _pend(self, texture: str, rect) -> None:
+        """Upload `rect` of a texture when the drain ends: the units drained together (scattered
+        ones' rects overlap) are uploaded once."""
+        old = self.pending.get(texture)
+        self.pending[texture] = rect if old is None else (min(old[0], rect[0]), max(old[1], rect[1]),
+                                                          min(old[2], rect[2]), max(old[3], rect[3]))
+
+    def _upload_pending(self) -> None:
+        colour, overlay = self.pending.pop("colour", None), self.pending.pop("overlay", None)
+        if colour is not None and self.v.state.render.colour is not None:
+            self.v.display.upload(self.v.state.render.colour, None, colour)
+        if overlay is not None:
+            self.v.display.upload(None, self.v.overlay.data, overlay)
+
+    def _fill_overlay(self, frame, ref, unit) -> None:
+        """The overlay at a traced unit's pixels only (a scattered unit's rect holds others)."""
+        pixels = None if fills_rect(unit.pixels, unit.rect) else unit.pixels
+        if self.v.overlay.fill(frame, ref, unit.rect, pixels):
+            self._pend("overlay", unit.rect)
 
     def _overlay_channel(self):
         return self.v.overlay.channel if self.v.state.settings.overlay != "none" else None
@@ -117,13 +142,14 @@ class EventSink:
         self.v.display.upload(self.v.state.render.colour, None)
         self.shaded_mode = mode
 
-    def _on_tile(self, rect):
+    def _on_tile(self, unit):
+        """A work unit is traced and shaded into r.colour (its pixels only)."""
         r = self.v.state.render
         r.tiles_done += 1
-        self.v.display.upload(r.colour, None, rect)
+        self._pend("colour", unit.rect)
         ch = self._overlay_channel()
-        if ch is not None and not ch.needs_reference and self.v.overlay.fill(r.frame, None, rect):
-            self.v.display.upload(None, self.v.overlay.data, rect)
+        if ch is not None and not ch.needs_reference:
+            self._fill_overlay(r.frame, None, unit)
 
     def _on_frame(self, frame):
         st, r = self.v.state, self.v.state.render
@@ -140,12 +166,12 @@ class EventSink:
         r = self.v.state.render
         r.reference, r.ref_total, r.ref_done = ref, ref.tiles_total, 0
 
-    def _on_ref_tile(self, rect):
+    def _on_ref_tile(self, unit):
         r = self.v.state.render
         r.ref_done += 1
         ch = self._overlay_channel()
-        if ch is not None and ch.needs_reference and self.v.overlay.fill(r.frame, r.reference, rect):
-            self.v.display.upload(None, self.v.overlay.data, rect)
+        if ch is not None and ch.needs_reference:
+            self._fill_overlay(r.frame, r.reference, unit)
 
     def _on_reference(self, ref):
         r = self.v.state.render

@@ -1,7 +1,8 @@
-"""CPU side of the overlay: one tracer.stats channel's values per pixel, filled tile by tile.
+"""CPU side of the overlay: one tracer.stats channel's values per pixel, filled unit by unit.
 
 Channels are elementwise, so a tile's values come from the channel evaluated on views of the
-frame's arrays sliced to the tile. The GPU maps values to colours (shaders/image.frag).
+frame's arrays sliced to the tile, and a scattered unit's from copies of its pixels' values
+laid out as one row. The GPU maps values to colours (shaders/image.frag).
 """
 from __future__ import annotations
 
@@ -21,6 +22,13 @@ def sub_frame(frame, rect):
     """The frame restricted to rect (y0, y1, x0, x1): views, no copies."""
     y0, y1, x0, x1 = rect
     return replace(frame, **{n: getattr(frame, n)[y0:y1, x0:x1] for n in AOV_NAMES if getattr(frame, n) is not None})
+
+
+def pixels_frame(frame, pixels):
+    """The frame's values at pixels (k, 2) (row, column), as a frame of one row of k pixels."""
+    rows, cols = pixels[:, 0], pixels[:, 1]
+    return replace(frame, **{n: getattr(frame, n)[rows, cols][None] for n in AOV_NAMES
+                             if getattr(frame, n) is not None})
 
 
 class Overlay:
@@ -44,8 +52,9 @@ class Overlay:
         self.specials = []
         self.dirty_range = True
 
-    def fill(self, frame, ref, rect=None) -> bool:
-        """Evaluate the channel on rect (default: the whole frame); False if it cannot be yet."""
+    def fill(self, frame, ref, rect=None, pixels=None) -> bool:
+        """Evaluate the channel on rect (default: the whole frame), or only at pixels (k, 2)
+        (row, column); False if it cannot be yet."""
         ch = self.channel
         if ch is None or frame is None or (ch.needs_reference and ref is None):
             return False
@@ -53,15 +62,22 @@ class Overlay:
         rect = rect or (0, h, 0, w)
         if self.data.shape[:2] != (h, w):
             self.reset(self.name, (w, h))
-        f = sub_frame(frame, rect)
-        r = sub_frame(ref, rect) if ref is not None else None
-        y0, y1, x0, x1 = rect
-        block = self.data[y0:y1, x0:x1]
+        if pixels is not None:
+            f = pixels_frame(frame, pixels)
+            r = pixels_frame(ref, pixels) if ref is not None else None
+            block = np.empty((1, len(pixels), 2), np.float32)
+        else:
+            f = sub_frame(frame, rect)
+            r = sub_frame(ref, rect) if ref is not None else None
+            y0, y1, x0, x1 = rect
+            block = self.data[y0:y1, x0:x1]
         block[..., 0] = ch.values(f, r)
         block[..., 1] = 0.0
         specials = ch.specials(f, r) if ch.specials else []
         for k, (mask, rgb, text) in enumerate(specials[:MAX_SPECIALS]):
             block[..., 1][mask] = k + 1  # later classes win, as in stats.channel_rgb
+        if pixels is not None:
+            self.data[pixels[:, 0], pixels[:, 1]] = block[0]
         self.specials = [(rgb, text) for _, rgb, text in specials[:MAX_SPECIALS]]
         self.dirty_range = True
         return True

@@ -1,10 +1,13 @@
 """Background rendering: one worker thread runs the newest job, tile by tile, cancellable.
 
-A job traces a coarse preview (1/8 resolution, same view), then the full frame with
-tiles ordered from the centre out, then (optionally) the float64 reference of the
-same rays. Tiles are shaded in the worker (tracer.shade) and reported as events;
-the UI thread drains the events and uploads the rects. The numba kernels release
-the GIL, so the UI thread keeps running while tiles are traced.
+A job traces a coarse preview (1/8 resolution, same view), then the full frame, then
+(optionally) the float64 reference of the same rays. The full frame's work units come in the
+pixel order option's sequence (tracer/pixel_order.py: Peano squares, or item-buffer runs of
+scattered pixels); `scanline` tiles are handed out from the centre out instead of row by row (the
+same tiles, what the user looks at first). A unit's pixels, and only those, are shaded in the
+worker (tracer.shade) and reported as events; the UI thread drains the events and uploads the
+rects holding them. The numba kernels release the GIL, so the UI thread keeps running while
+units are traced.
 
 The display mode is not part of a job: set_mode changes it while the job runs, and the
 worker re-shades what it has traced so far (the trace is never restarted for it). A tile
@@ -25,7 +28,8 @@ import numpy as np
 from tracer.camera import View, primary_rays
 from tracer.geometry import prepare
 from tracer.options import Options, option_fields
-from tracer.render import reference_frame, tiles, trace_rays
+from tracer.pixel_order import fills_rect
+from tracer.render import reference_frame, trace_rays, work_units
 from tracer.shade import shade
 
 COARSE = 8
@@ -43,11 +47,27 @@ def worker_threads(opts: Options) -> int:
     return opts.threads if opts.threads > 0 else max(1, (os.cpu_count() or 2) - 1)
 
 
-def centre_out(width: int, height: int, size: int) -> list:
-    """Tile order (indices into render.tiles) by distance of the tile centre from the image centre."""
-    rects = tiles(width, height, size)
+def centre_out(width: int, height: int, opts: Options) -> list:
+    """Scanline tile order (indices into render.work_units) by distance of the tile centre from
+    the image centre."""
+    rects = [u.rect for u in work_units(width, height, opts.with_(order="scanline"))]
     d = [((y0 + y1 - height) ** 2 + (x0 + x1 - width) ** 2) for y0, y1, x0, x1 in rects]
     return sorted(range(len(rects)), key=d.__getitem__)
+
+
+def unit_order(width: int, height: int, opts: Options):
+    """trace_rays' `order` for the full frame: centre-out for scanline, the option's own sequence
+    otherwise (None)."""
+    return centre_out(width, height, opts) if opts.order == "scanline" else None
+
+
+def paint(colour: np.ndarray, frame, scene, mode: str, unit) -> None:
+    """Shade a traced unit's pixels into `colour` (H, W, 3), leaving every other pixel alone."""
+    y0, y1, x0, x1 = unit.rect
+    if fills_rect(unit.pixels, unit.rect):
+        colour[y0:y1, x0:x1] = shade(frame, scene, mode, rect=unit.rect)
+    else:
+        colour[unit.pixels[:, 0], unit.pixels[:, 1]] = shade(frame, scene, mode, pixels=unit.pixels)
 
 
 def _lower_priority(nice: int = 10) -> None:
@@ -231,19 +251,19 @@ class RenderWorker:
         o, d = primary_rays(view, cw, ch, opts.precision)
         self._phase(job, "coarse")
         coarse = trace_rays(geom, opts.with_(tile_size=max(8, opts.tile_size)), o, d, view.pixel_angle(ch),
-                            cancel=cancel, on_compile=self._on_compile(job))
+                            cancel=cancel, on_compile=self._on_compile(job), view=view)
         if cancel.is_set():
             return self._emit("cancelled", job)
         mode = self._mode_of(job)
         rgb = shade(coarse, scene, mode, rect=(0, ch, 0, cw))
         self._emit("coarse", job, (coarse, rgb, COARSE, mode))
 
-        # Full resolution, centre-out; untraced pixels keep the preview's colours.
+        # Full resolution in the order's sequence; untraced pixels keep the preview's colours.
         colour = upscale(rgb, COARSE, job.size).astype(np.float32)
         origins, dirs = primary_rays(view, width, height, opts.precision)
-        done, shaded = [], [mode]
+        traced, shaded = np.zeros((height, width), bool), [mode]
 
-        def on_tile(frame, rect):
+        def on_tile(frame, unit):
             if cancel.is_set():
                 return
             if frame_box[0] is None:
@@ -253,22 +273,21 @@ class RenderWorker:
             if now != shaded[0]:  # the mode changed: re-shade what is there, keep tracing
                 shaded[0] = now
                 colour[:] = upscale(shade(coarse, scene, now, rect=(0, ch, 0, cw)), COARSE, job.size)
-                for y0, y1, x0, x1 in done:
-                    colour[y0:y1, x0:x1] = shade(frame, scene, now, rect=(y0, y1, x0, x1))
+                # only the pixels traced: the others are being written by the tile threads
+                done = np.argwhere(traced)
+                colour[done[:, 0], done[:, 1]] = shade(frame, scene, now, pixels=done)
                 self._emit("recolour", job, now)
-            y0, y1, x0, x1 = rect
-            colour[y0:y1, x0:x1] = shade(frame, scene, now, rect=rect)
-            done.append(rect)
-            self._emit("tile", job, rect)
+            paint(colour, frame, scene, now, unit)
+            traced[unit.pixels[:, 0], unit.pixels[:, 1]] = True
+            self._emit("tile", job, unit)
 
         frame_box = [None]
         hold = self._hold if self._hold is not None and not self._hold.is_set() else None
         self._phase(job, "full")
         frame = trace_rays(geom, opts, origins, dirs, view.pixel_angle(height), on_tile=on_tile,
-                           cancel=TileCancel(cancel, hold), order=centre_out(width, height, opts.tile_size))
+                           cancel=TileCancel(cancel, hold), order=unit_order(width, height, opts), view=view)
         if cancel.is_set() or frame.tiles_done < frame.tiles_total:
             return self._emit("cancelled", job)
-        frame.extras["view"] = view
         self._emit("frame", job, frame)
         if not job.reference:
             return self._phase(job, "done")
@@ -280,11 +299,11 @@ class RenderWorker:
         geom64 = self.geometry.get(scene, "f64")
         ref_box = [None]
 
-        def on_ref_tile(ref, rect):
+        def on_ref_tile(ref, unit):
             if ref_box[0] is None:
                 ref_box[0] = ref
                 self._emit("ref_start", job, ref)
-            self._emit("ref_tile", job, rect)
+            self._emit("ref_tile", job, unit)
 
         self._phase(job, "reference")
         start = time.perf_counter()
