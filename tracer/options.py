@@ -64,7 +64,7 @@ class Options(Record):
                        "(Lischinski's surface trees, least recently used released first)")
     cache_mb: float = _coh(64.0, "surface-tree cache: memory bound per render thread, MiB", lo=1.0, hi=65536.0,
                            log=True, when={"cache": True})
-    cache_depth: int = _coh(12, "surface-tree cache: levels of each patch's tree kept", lo=1, hi=40,
+    cache_depth: int = _coh(4, "surface-tree cache: levels of each patch's tree kept", lo=1, hi=40,
                             when={"cache": True})
     order: str = _coh("scanline", "pixel order: rows, the Peano curve (every quadrant finished before the next), "
                       "or patch by patch from a 64x64 item buffer", choices=ORDERS)
