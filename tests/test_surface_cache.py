@@ -102,3 +102,18 @@ def test_the_queue_and_the_pool_follow_a_python_model():
         queue.append(p)
         p = int(cache.lru_next[p])
     assert [q for q in queue if q in trees] == [q for q in model_queue if q in trees]
+
+
+@pytest.mark.parametrize("bundle", ["2x2", "8x8"])
+def test_bundles_share_the_cache_and_change_nothing(bundle):
+    scene, view = D.catalogue()["teapot"][0]()
+    geom = prepare(scene, "f32")
+    alone = render(scene, Options(threads=1), size=(24, 24), view=view, geometry=geom)
+    opts = Options(threads=1, bundle=bundle, cache=True)
+    first = render(scene, opts, size=(24, 24), view=view, geometry=geom)
+    again = render(scene, opts, size=(24, 24), view=view, geometry=geom)
+    exact = CHANNELS[:8]  # not the counters: bundles visit nodes and boxes in another order
+    for frame in (first, again):
+        assert not [c for c in exact if not np.array_equal(getattr(frame, c), getattr(alone, c), equal_nan=True)]
+    assert np.array_equal(first.cache_hits + first.cache_misses, first.patches_tested)
+    assert again.cache_misses.sum() == 0

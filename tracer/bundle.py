@@ -25,19 +25,23 @@ from .aggregate import BvhNodes  # noqa: F401 (the record the walk reads)
 from .drivers import WIDE_BITS, wide_leaves, wide_slots
 from .jit import njit, specialise
 from .ray import H_TIN, RAY_LEN, R_O, slab
-from .records import C_BOX_TESTS, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES
-from .search_steps import halve, hull_accepts, judge, report, root, tighten, trim_accepts, trim_state
-from .subpatch import M_OX, M_TIN, M_TOUT, hull_hit, hull_off_plane, patch_info, seam_plane
+from .records import C_BOX_TESTS, C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES
+from .search_steps import halve, hull_accepts, judge, report, root_at, tighten, trim_accepts, trim_state
+from .subpatch import I_DEPTH, I_LAST, I_STALLED, M_DPAR, M_OX, M_TIN, M_TOUT, hull_hit, hull_off_plane, patch_info
+from .subpatch import seam_plane
+from .surface_cache import S_DEPTH, S_FIRST, S_HITS, S_MISSES, copy_slot, take_pair, touch
 
 ONE = np.uint64(1)
 ZERO = np.uint64(0)
 MAX_RAYS = 64
 
 # A bundle's rays: rays and lrays (K, RAY_LEN) (lrays: moved into the searched patch's frame),
-# hits (K, HIT_LEN), counts (K, COUNTER_LEN) int64, lengths (K,) |direction|; per slot of the
-# sub-patch stack: mask (S,) uint64 and the rays' slab intervals tin, tout (S, K); the BVH walk's
-# stack: node (D,) int32, node_mask (D,) uint64, node_tin (D, K).
-BundleRays = namedtuple("BundleRays", "rays lrays hits counts lengths mask tin tout node node_mask node_tin")
+# hits (K, HIT_LEN), counts (K, COUNTER_LEN) int64, lengths (K,) |direction|; per position of
+# the sub-patch stack: slot (S,) int32, mask (S,) uint64 and the rays' slab intervals tin, tout
+# (S, K); free (S,) int32 working slots not in use; the BVH walk's stack: node (D,) int32,
+# node_mask (D,) uint64, node_tin (D, K).
+BundleRays = namedtuple("BundleRays", "rays lrays hits counts lengths slot mask tin tout free node node_mask "
+                        "node_tin")
 
 if numba.config.DISABLE_JIT:
     def _trailing_zeros(m):
@@ -81,9 +85,9 @@ def ahead(tin, row, hits, m):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def open_rays(sl, s, br, m):
-    """Slab-test slot s's box against the rays of m (intervals into tin, tout); the rays that meet
-    it before their own closest hit."""
+def open_rays(sl, s, br, row, m):
+    """Slab-test slot s's box against the rays of m (intervals into tin[row], tout[row]); the
+    rays that meet it before their own closest hit."""
     alive = ZERO
     box = sl.box[s]
     ox = sl.mf[s, M_OX]
@@ -93,8 +97,8 @@ def open_rays(sl, s, br, m):
         r = lowest_bit(m)
         m &= m - ONE
         ok, t_in, t_out = slab(box, ox, oy, oz, br.lrays[r])
-        br.tin[s, r] = t_in
-        br.tout[s, r] = t_out
+        br.tin[row, r] = t_in
+        br.tout[row, r] = t_out
         if ok and t_in < br.hits[r, H_TIN]:
             alive |= bit(r)
     return alive
@@ -112,22 +116,26 @@ def nearest(tin, row, m):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def bundle_subdivide(sl, a, sp, pa, br, go, first, q, d_crit, shrank, has_general):
-    """subdivide (search_steps) for the rays of `go`: halve slot a, test both halves against each
-    ray (with the single-ray hull tests where a ray meets both), push the halves some ray keeps,
-    the bundle's nearer on top. Returns the new stack height."""
-    order = sl.order
-    b = order[sp + 1]
-    direction = halve(sl, a, b, pa, br.lrays[first], q, d_crit, shrank, has_general)
-    keep_a = open_rays(sl, a, br, go)
-    keep_b = open_rays(sl, b, br, go)
+def swap_rows(a, i, j):
+    for k in range(a.shape[1]):
+        a[i, k], a[j, k] = a[j, k], a[i, k]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def push_halves(sl, a, b, sp, pa, br, go, direction):
+    """The halves a and b (b past the seam) at stack positions sp and sp + 1 for the rays of `go`:
+    each ray's intervals, the single ray's hull tests where it meets both, the bundle's nearer
+    half on top. Returns the new stack height and the halves no ray keeps (-1 for none)."""
+    keep_a = open_rays(sl, a, br, sp, go)
+    keep_b = open_rays(sl, b, br, sp + 1, go)
     both = keep_a & keep_b
-    while both != ZERO:  # as subdivide: the far half across the seam plane and the ray's planes first
+    while both != ZERO:  # as sort_halves: the far half across the seam plane and the ray's planes first
         r = lowest_bit(both)
         both &= both - ONE
         lr = br.lrays[r]
-        far = b if br.tin[a, r] <= br.tin[b, r] else a
-        near = a if far == b else b
+        a_near = br.tin[sp, r] <= br.tin[sp + 1, r]
+        far = b if a_near else a
+        near = a if a_near else b
         w0, w1, w2 = seam_plane(sl, b, pa, direction, lr)
         if hull_off_plane(sl, far, pa, lr, w0, w1, w2) or not hull_hit(sl, far, pa, lr):
             if far == a:
@@ -139,20 +147,32 @@ def bundle_subdivide(sl, a, sp, pa, br, go, first, q, d_crit, shrank, has_genera
                 keep_a &= ~bit(r)
             else:
                 keep_b &= ~bit(r)
-    br.mask[a] = keep_a
-    br.mask[b] = keep_b
-    if keep_a == ZERO or keep_b == ZERO:
-        order[sp] = a if keep_a != ZERO else b
-        order[sp + 1] = b if keep_a != ZERO else a
-        return sp + (0 if (keep_a | keep_b) == ZERO else 1)
-    near_a = nearest(br.tin, a, keep_a) <= nearest(br.tin, b, keep_b)
-    order[sp] = b if near_a else a
-    order[sp + 1] = a if near_a else b
-    return sp + 2
+    if keep_a != ZERO and keep_b != ZERO:
+        if nearest(br.tin, sp, keep_a) <= nearest(br.tin, sp + 1, keep_b):  # a nearer: a on top
+            swap_rows(br.tin, sp, sp + 1)
+            swap_rows(br.tout, sp, sp + 1)
+            a, b, keep_a, keep_b = b, a, keep_b, keep_a
+        br.slot[sp], br.slot[sp + 1] = a, b
+        br.mask[sp], br.mask[sp + 1] = keep_a, keep_b
+        return sp + 2, -1, -1
+    if keep_a == ZERO and keep_b == ZERO:
+        return sp, a, b
+    if keep_b != ZERO:  # only b: to position sp
+        for k in range(br.tin.shape[1]):
+            br.tin[sp, k] = br.tin[sp + 1, k]
+            br.tout[sp, k] = br.tout[sp + 1, k]
+        br.slot[sp] = b
+        br.mask[sp] = keep_b
+        return sp + 1, a, -1
+    br.slot[sp] = a
+    br.mask[sp] = keep_a
+    return sp + 1, b, -1
 
 
 def _bundle_search(p, lv, trims, q, sl, br, active):
-    """The bundle patch search template (specialised by make_bundle_search)."""
+    """The bundle patch search template (specialised by make_bundle_search): the single ray's
+    steps (drivers._search, _cached_search with CACHED) for the rays of a mask, on a stack of
+    positions that hold a slot (a working slot, or a cached node), a mask and the rays' intervals."""
     pa = patch_info(lv, p, WIDE_BITS if WIDE else q.bits, HAS_RATIONAL, HAS_CUBIC, HAS_LINEAR)  # noqa: F821
     m = active
     while m != ZERO:  # each ray moved into the patch's frame
@@ -162,20 +182,45 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
             br.lrays[r, k] = br.rays[r, k]
         for c in range(3):
             br.lrays[r, R_O + c] = br.rays[r, R_O + c] - lv.frame[p, c]
-    s = root(sl, pa, lv)
+    cache = sl.cache
+    first = cache.state[S_FIRST] if CACHED else br.free.shape[0]  # noqa: F821
+    ncoord = 4 if pa.rational else 3
+    free = br.free
+    nfree = br.free.shape[0]
+    for k in range(nfree):  # every working slot is free when a search starts
+        free[k] = k
+    s = -1
+    if CACHED:  # noqa: F821
+        touch(cache, p)
+        s = cache.root[p]
+        add_count(br.counts, active, C_CACHE_HITS if s >= 0 else C_CACHE_MISSES, 1)
+        cache.state[S_HITS if s >= 0 else S_MISSES] += 1
+        if s < 0:
+            s = take_pair(cache, p)
+            if s >= 0:
+                cache.root[p] = s
+                cache.child[s - first] = -1
+                root_at(sl, s, pa, lv)
+    if s < 0:
+        nfree -= 1
+        s = free[nfree]
+        root_at(sl, s, pa, lv)
     add_count(br.counts, active, C_EFFORT, 1)
-    br.mask[s] = open_rays(sl, s, br, active)
-    sp = 1 if br.mask[s] != ZERO else 0
+    br.slot[0] = s
+    br.mask[0] = open_rays(sl, s, br, 0, active)
+    sp = 1 if br.mask[0] != ZERO else 0
     while sp > 0:
         sp -= 1
-        a = sl.order[sp]
-        live = ahead(br.tin, a, br.hits, br.mask[a])
-        if live == ZERO:
-            continue
-        if HAS_TRIMS and trim_state(sl, a, pa, trims) < 0:  # noqa: F821
+        a = br.slot[sp]
+        cached = a >= first
+        live = ahead(br.tin, sp, br.hits, br.mask[sp])
+        if live == ZERO or (HAS_TRIMS and trim_state(sl, a, pa, trims) < 0):  # noqa: F821
+            if not cached:
+                free[nfree] = a
+                nfree += 1
             continue
         go = ZERO
-        first = 0
+        first_ray = 0
         d_first = 0.0
         shrank_first = False
         kept = -1  # the box's trim verdict, once a ray needs it
@@ -183,12 +228,12 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
         while m != ZERO:
             r = lowest_bit(m)
             m &= m - ONE
-            sl.mf[a, M_TIN] = br.tin[a, r]  # the steps read the ray's interval from the slot
-            sl.mf[a, M_TOUT] = br.tout[a, r]
+            sl.mf[a, M_TIN] = br.tin[sp, r]  # the steps read the ray's interval from the slot
+            sl.mf[a, M_TOUT] = br.tout[sp, r]
             stop, d_crit, shrank = judge(sl, a, pa, lv, br.lrays[r], q)
             if not stop:
                 if go == ZERO:
-                    first, d_first, shrank_first = r, d_crit, shrank
+                    first_ray, d_first, shrank_first = r, d_crit, shrank
                 go |= bit(r)
             elif hull_accepts(sl, a, pa, br.lrays[r], q):
                 if HAS_TRIMS and kept < 0:  # noqa: F821
@@ -196,10 +241,48 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
                 if kept != 0:
                     report(br.hits[r], sl, a, pa, lv)
         if go == ZERO:
+            if not cached:
+                free[nfree] = a
+                nfree += 1
             continue
-        tighten(sl, a, pa, lv)
-        sp = bundle_subdivide(sl, a, sp, pa, br, go, first, q, d_first, shrank_first, HAS_GENERAL)  # noqa: F821
         add_count(br.counts, go, C_EFFORT, 2)
+        lr = br.lrays[first_ray]
+        kid = -1
+        if CACHED and cached and sl.mi[a, I_DEPTH] < cache.state[S_DEPTH]:  # noqa: F821
+            kid = cache.child[a - first]
+            if kid < 0:  # compute the halves once, from a working copy, and keep them
+                kid = take_pair(cache, p)
+                if kid >= 0:
+                    w = free[nfree - 1]
+                    b = free[nfree - 2]
+                    copy_slot(sl, a, w, ncoord, pa.count)
+                    tighten(sl, w, pa, lv)
+                    halve(sl, w, b, pa, lr, q, d_first, shrank_first, HAS_GENERAL)  # noqa: F821
+                    copy_slot(sl, w, kid, ncoord, pa.count)
+                    copy_slot(sl, b, kid + 1, ncoord, pa.count)
+                    cache.child[a - first] = kid
+                    cache.child[kid - first] = -1
+                    cache.child[kid + 1 - first] = -1
+        if kid >= 0:  # the cached halves, with the first ray's view of their parent
+            for c in (kid, kid + 1):
+                sl.mf[c, M_DPAR] = d_first
+                sl.mi[c, I_STALLED] = 0 if shrank_first else 1
+            sp, _, _ = push_halves(sl, kid, kid + 1, sp, pa, br, go, sl.mi[kid, I_LAST])
+            continue
+        if cached:  # below the cached levels (or the pool is full): on in working slots
+            nfree -= 1
+            w = free[nfree]
+            copy_slot(sl, a, w, ncoord, pa.count)
+            a = w
+        tighten(sl, a, pa, lv)
+        nfree -= 1
+        b = free[nfree]
+        direction = halve(sl, a, b, pa, lr, q, d_first, shrank_first, HAS_GENERAL)  # noqa: F821
+        sp, dropped, dropped2 = push_halves(sl, a, b, sp, pa, br, go, direction)
+        for c in (dropped, dropped2):
+            if c >= 0:
+                free[nfree] = c
+                nfree += 1
 
 
 def _by_kind(p, lv, trims, q, sl, br, active):
@@ -216,8 +299,9 @@ def _rational_only(p, lv, trims, q, sl, br, active):
 def make_bundle_search(variant):
     """search(p, lv, trims, q, sl, br, active): patch p searched for the rays of mask `active` of
     the bundle br (BundleRays); each ray's hit shrinks as it finds closer hit boxes. Integral
-    patches in the working precision, rational ones in float64 slots (as drivers.make_search)."""
-    flags = dict(HAS_TRIMS=variant.trims)
+    patches in the working precision, rational ones in float64 slots (as drivers.make_search),
+    from the thread's surface-tree cache if the variant has it."""
+    flags = dict(HAS_TRIMS=variant.trims, CACHED=variant.cache)
     kernel = njit(cache=True, nogil=True, _nrt=False)
     narrow = None
     if variant.cubic or variant.linear or variant.general:
@@ -302,12 +386,6 @@ def _bvh_bundle_walk(agg, lv, trims, q, sl, br, active):
         top += 2
 
 
-@njit(cache=True, nogil=True, inline='always')
-def swap_rows(a, i, j):
-    for k in range(a.shape[1]):
-        a[i, k], a[j, k] = a[j, k], a[i, k]
-
-
 def make_bvh_bundle_walk(search):
     """walk(agg, lv, trims, q, sl, br, active): the bundle through the BVH, each visited leaf's
     patches searched for the rays that reach it."""
@@ -315,10 +393,12 @@ def make_bvh_bundle_walk(search):
 
 
 def bundle_rays(count: int, slots: int, stack: int) -> BundleRays:
-    """A bundle's records for up to `count` rays, `slots` sub-patch slots and a walk `stack` deep."""
+    """A bundle's records for up to `count` rays, `slots` working sub-patch slots (the search's stack
+    is no deeper) and a walk `stack` deep."""
     from .ray import HIT_LEN
     from .records import COUNTER_LEN
     return BundleRays(np.zeros((count, RAY_LEN)), np.zeros((count, RAY_LEN)), np.zeros((count, HIT_LEN)),
-                      np.zeros((count, COUNTER_LEN), np.int64), np.zeros(count), np.zeros(slots, np.uint64),
-                      np.zeros((slots, count)), np.zeros((slots, count)), np.zeros(stack, np.int32),
-                      np.zeros(stack, np.uint64), np.zeros((stack, count)))
+                      np.zeros((count, COUNTER_LEN), np.int64), np.zeros(count), np.zeros(slots, np.int32),
+                      np.zeros(slots, np.uint64), np.zeros((slots, count)), np.zeros((slots, count)),
+                      np.zeros(slots, np.int32), np.zeros(stack, np.int32), np.zeros(stack, np.uint64),
+                      np.zeros((stack, count)))
