@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .camera import View, primary_rays, view_of
-from .aggregate import bvh_nodes, walk_stack
+from .accel import aggregate_for
 from .geometry import Geometry, prepare
 from .kernel_channels import CHANNEL_NAMES, Outputs, allocate
 from .options import CRITERION_CODE, SPLIT_CODE, Options
@@ -125,19 +125,20 @@ def work_units(width: int, height: int, opts: Options) -> list:
 @dataclass(frozen=True)
 class KernelInputs:
     """What the kernels take for one frame: the scene records (Leaves, Trims, aggregate), the
-    query, the scratch sizes (threshold-of-detail slope, points, walk stack, trim points) and the
-    leaf-to-scene-patch map."""
+    query, the scratch sizes (threshold-of-detail slope, points, walk stack, trim points), the
+    leaf-to-scene-patch map and the aggregate's build report (accel.aggregate_for)."""
 
     scene: tuple
     query: Query
     sizes: tuple
     leaf_patch: np.ndarray
+    accel: dict = field(default_factory=dict)
 
 
 NO_BUDGET = np.zeros((1, 1), np.int32)
 # Coherence option values whose code is still being written this session (issue 12): refused in
 # one line rather than ignored. Each entry goes when its feature lands.
-NOT_YET = {"accel": ("kdtree", "grid"), "bundle": ("2x2", "4x2", "2x4", "4x4", "8x8"), "cache": (True,),
+NOT_YET = {"bundle": ("2x2", "4x2", "2x4", "4x4", "8x8"), "cache": (True,),
            "order": ("peano", "itembuffer")}
 
 
@@ -147,9 +148,10 @@ def check_available(opts: Options) -> None:
             raise ValueError(f"option {name}: {getattr(opts, name)!r} is not available in this build")
 
 
-def kernel_inputs(geom: Geometry, opts: Options, pixel_angle: float, budget=None) -> KernelInputs:
+def kernel_inputs(geom: Geometry, opts: Options, pixel_angle: float, budget=None, on_build=None) -> KernelInputs:
     """The records a tile kernel needs, derived once per frame. budget: (factor, (H, W) int32 base)
-    bounds each ray's boxes to factor * max(base, records.BUDGET_FLOOR); None: no bound."""
+    bounds each ray's boxes to factor * max(base, records.BUDGET_FLOOR); None: no bound. The
+    aggregate is built on first use (on_build: see accel.aggregate_for)."""
     check_available(opts)
     criterion = CRITERION_CODE[opts.criterion]
     param = {"float": 0.0, "fixed": opts.fixed_size, "adaptive": 0.0,
@@ -160,8 +162,9 @@ def kernel_inputs(geom: Geometry, opts: Options, pixel_angle: float, budget=None
     trims = Trims(*geom.trims_for(opts.trims))
     factor, base = (0.0, NO_BUDGET) if budget is None else (float(budget[0]), np.ascontiguousarray(budget[1], np.int32))
     query = Query(criterion, param, SPLIT_CODE[opts.split], geom.max_depth, geom.bits, factor, base)
-    sizes = (float(slope), max(geom.max_points, 16), walk_stack(geom.bvh), max(geom.trim_points, 2))
-    return KernelInputs((leaves, trims, bvh_nodes(geom.bvh)), query, sizes, geom.leaf_patch)
+    agg = aggregate_for(geom, opts, on_build)
+    sizes = (float(slope), max(geom.max_points, 16), agg.stack, max(geom.trim_points, 2))
+    return KernelInputs((leaves, trims, agg.record), query, sizes, geom.leaf_patch, agg.report)
 
 
 def thread_count(opts: Options) -> int:
@@ -170,14 +173,16 @@ def thread_count(opts: Options) -> int:
 
 def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float, *,
                on_tile=None, cancel: threading.Event | None = None, progress=None,
-               order=None, on_compile=None, driver: str = "closest", budget=None) -> Frame:
+               order=None, on_compile=None, on_build=None, driver: str = "closest", budget=None) -> Frame:
     """Trace given primary rays (H, W, 3) tile by tile; returns the filled Frame.
 
     on_tile(frame, rect) is called from the calling thread as each work unit finishes (rect: the
     rectangle holding its pixels); progress(n) advances a progress bar; `order` optionally permutes
     the work units (work_units);
     on_compile(variant[, seconds]) is called before and after a kernel variant is compiled
-    or loaded from the cache (variants.compiled); driver: 'closest' hit, or 'any' (the first hit box found);
+    or loaded from the cache (variants.compiled); on_build(description[, seconds]) likewise around the
+    build of a kd-tree or grid (accel.aggregate_for; its figures go to frame.extras["accel"]);
+    driver: 'closest' hit, or 'any' (the first hit box found);
     budget: a box budget per ray (kernel_inputs), its exhaustion marked in the `unresolved` channel.
     """
     frame = Frame.empty(origins, dirs)
@@ -186,7 +191,8 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     if order is not None:
         units = [units[i] for i in order]
     frame.tiles_total = len(units)
-    inputs = kernel_inputs(geom, opts, pixel_angle, budget)
+    inputs = kernel_inputs(geom, opts, pixel_angle, budget, on_build)
+    frame.extras["accel"] = inputs.accel
     outs = frame.outputs()
     trace = no_trace()
     variant = variant_for(geom, opts, driver=driver)

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from .aggregate import WALKS, WalkStack
+from .aggregate import WALKS, walk_scratch
 from .drivers import make_search
 from .jit import njit, specialise
 from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, R_BUDGET, make_ray
@@ -24,7 +24,7 @@ from .trim_kernel import MAX_SPLIT_DEPTH
 
 def tile_scratch(inputs) -> TileScratch:
     """A thread's scratch for one kernel call (kernel_inputs' records): the sub-patch stack in the
-    working dtype, the aggregate's walk stack and the per-ray records. Made here, in numpy, so
+    working dtype, the aggregate's walk scratch (its stack and mailbox) and the per-ray records. Made here, in numpy, so
     the kernels allocate nothing (no reference counting, and no allocating kernel to compile)."""
     lv = inputs.scene[0]
     _, max_points, stack_nodes, trim_points = inputs.sizes
@@ -38,8 +38,7 @@ def tile_scratch(inputs) -> TileScratch:
                np.arange(slots).astype(np.uint32),  # unsigned slot indices: no negative-index fix-ups
                np.zeros(RAY_LEN), np.zeros((4, max_points)),
                np.zeros((MAX_SPLIT_DEPTH + 4, trim_points, 3)), np.zeros((MAX_SPLIT_DEPTH + 4, 6)), buf64)
-    stack = WalkStack(np.zeros(stack_nodes, np.int32), np.zeros(stack_nodes))
-    return TileScratch(sl, stack, ray_scratch(max_points))
+    return TileScratch(sl, walk_scratch(inputs.scene[2], stack_nodes), ray_scratch(max_points))
 
 
 def _render_tile(pixels, origins, dirs, scene, q, slope, leaf_patch, out, trace, scratch):

@@ -24,8 +24,8 @@ _BUILT: dict = {}
 _LOCK = threading.Lock()
 
 
-def variant_for(geom, opts, *, trace: bool = False, driver: str = "closest", accel: str = "bvh") -> Variant:
-    """The variant a render of `geom` with `opts` needs."""
+def variant_for(geom, opts, *, trace: bool = False, driver: str = "closest") -> Variant:
+    """The variant a render of `geom` with `opts` needs (the aggregate kind is opts.accel)."""
     m = np.asarray(geom.deg_u)
     n = np.asarray(geom.deg_v)
     rational = np.asarray(geom.rational) != 0
@@ -38,7 +38,7 @@ def variant_for(geom, opts, *, trace: bool = False, driver: str = "closest", acc
     # compiles); other degrees (the generic split) and rational patches stay flags of their own.
     fast = bool((cubic | linear).any())
     return Variant(geom.precision, bool(rational.any()), fast, fast,
-                   bool((integral & ~cubic & ~linear).any()), trimmed, bool(trace), driver, accel)
+                   bool((integral & ~cubic & ~linear).any()), trimmed, bool(trace), driver, opts.accel)
 
 
 def label(variant: Variant) -> str:
