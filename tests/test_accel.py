@@ -328,3 +328,40 @@ def test_the_report_reaches_the_stats():
     assert stats["kind"] == "grid" and stats["cells"] == np.prod(stats["dims"]) and stats["bytes"] > 0
     bvh = frame_stats(render(scene, Options(), size=(4, 4)))["accel"]
     assert bvh["kind"] == "bvh" and bvh["nodes"] == 2 * bvh["leaves"] - 1
+
+
+def test_the_command_line_reports_the_build(tmp_path, capsys):
+    import json
+
+    from psrt.cli import main
+    stats = tmp_path / "stats.json"
+    teapot = str(S.SAMPLES / "teapot.json")
+    assert main(["render", teapot, "-o", str(tmp_path / "img.png"), "--size", "12x10", "--accel", "kdtree",
+                 "--kd-split", "middle", "--mailbox", "--stats", str(stats)]) == 0
+    a = json.loads(stats.read_text())["accel"]
+    assert a["kind"] == "kdtree" and a["parameters"] == {"kd_depth": 20, "kd_split": "middle"} and a["mailbox"]
+    assert a["build_seconds"] >= 0 and a["nodes"] > 1 and a["bytes"] > 0
+    assert "kd-tree built in" in capsys.readouterr().err or not a["built_now"]
+
+
+def test_the_viewers_stats_panel_describes_each_structure():
+    from viewer.ui_stats import accel_lines
+    scene = _sample("teapot")
+    geom = prepare(scene, "f32")
+    for opts, word in ((Options(), "BVH"), (Options(accel="kdtree"), "leaves"), (Options(accel="grid"), "cells")):
+        lines = accel_lines(render(scene, opts, size=(4, 4), geometry=geom).extras["accel"])
+        assert lines and word in " ".join(lines)
+
+
+def test_the_variant_and_the_pixel_inspector_follow_the_structure():
+    from tracer.trace_one import trace_pixel
+    from tracer.variants import label, variant_for
+    scene = _sample("teapot")
+    geom = prepare(scene, "f32")
+    assert variant_for(geom, Options(accel="grid")).accel == "grid"
+    assert label(variant_for(geom, Options(accel="kdtree"))).endswith(" kdtree")
+    opts = Options(accel="kdtree")
+    frame = render(scene, opts, size=SIZE, geometry=geom)
+    for y, x in np.argwhere(frame.hit)[::97]:
+        tr = trace_pixel(scene, opts, int(x), int(y), size=SIZE, geometry=geom)
+        assert tr.hit and tr.patch == frame.patch[y, x] and np.array_equal(tr.box_min, frame.box_min[y, x])

@@ -45,7 +45,8 @@ def describe(opts) -> str:
     return KIND_NAMES[opts.accel] + (f" ({params})" if params else "")
 
 
-def _build(geom, opts):
+def build_structure(geom, opts):
+    """A new kd-tree (kdtree.KdTree) or grid (grid.Grid) over geom's leaves, as opts ask; no cache."""
     if opts.accel == "kdtree":
         return build_kdtree(geom.leaf_box, opts.kd_depth, opts.kd_split)
     return build_grid(geom, opts.grid_scale)
@@ -79,7 +80,7 @@ def aggregate_for(geom, opts, on_build=None) -> Aggregate:
             if on_build is not None:
                 on_build(describe(opts))
             start = time.perf_counter()
-            structure = _build(geom, opts)
+            structure = build_structure(geom, opts)
             seconds = time.perf_counter() - start
             figures = {"kind": opts.accel, "parameters": dict(params), "build_seconds": seconds,
                        **structure.report()}
