@@ -14,7 +14,7 @@ V_last: the cell holding the closest hit is the last one visited). A patch's box
 (geometry.leaf_box) is slab-tested before its search, as the BVH tests a leaf's box.
 
 Cell boundaries are computed in float64 from the ray; their rounding is covered by widening every
-cell's interval by a slack in world units (grid.CELL_SLACK of the scene's and the origin's
+cell's interval by a slack in world units (CELL_SLACK of the scene's and the origin's
 coordinates) over the ray's speed across the boundary's axis, so a crossing on a boundary is inside
 the interval of both cells. A hit found in a cell may therefore lie a hair beyond its nominal exit:
 the walk goes on to the next cell while that cell's widened entry comes before the hit.
