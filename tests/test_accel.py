@@ -63,7 +63,8 @@ def kd_listed(tree, leaf):
 
 
 @pytest.mark.parametrize("rule", ["sah", "middle"])
-@pytest.mark.parametrize("count", [1, 2, 7, 300])
+@pytest.mark.parametrize("count", [pytest.param(1, marks=pytest.mark.interpreted),
+                                   pytest.param(7, marks=pytest.mark.interpreted), 2, 300])
 def test_kdtree_lists_every_patch_wherever_its_box_lies(rule, count):
     """Points inside each box (its corners too): some leaf whose voxel holds the point lists the
     patch, and a point strictly inside one leaf's voxel has only that leaf to be listed in."""
@@ -289,6 +290,18 @@ def test_degenerate_scenes_render_as_through_the_bvh(kind):
     for opts in (Options(accel="kdtree", kd_split="middle"), Options(accel="kdtree", mailbox=True),
                  Options(accel="grid", grid_scale=8.0), Options(accel="grid", grid_scale=0.0625)):
         _agree(render(scene, opts, size=(16, 16), view=view, geometry=geom), base, f"{kind} {opts.accel}", 0.95)
+
+
+@pytest.mark.interpreted
+def test_both_walks_give_the_bvh_hits_on_a_few_rays():
+    """Small enough to run interpreted too (tests/test_interpreted.py)."""
+    scene = _degenerate("one patch")
+    geom = prepare(scene, "f32")
+    view = S.aim((1.0, 1.0, 0.0), (0.3, -0.4, 1.0), 6.0, 30.0)
+    base = render(scene, Options(), size=(6, 6), view=view, geometry=geom)
+    assert base.hit.sum() > 10
+    for opts in (Options(accel="kdtree"), Options(accel="grid", mailbox=True)):
+        _agree(render(scene, opts, size=(6, 6), view=view, geometry=geom), base, opts.accel, 1.0)
 
 
 def test_boxes_that_are_not_finite_or_no_boxes_are_an_error():
