@@ -7,12 +7,16 @@ leaf to the patch search (drivers.make_search), sharing the shrinking ray interv
 The closest-hit walk runs to the end; the any-hit walk stops at the first hit; both stop
 when the ray's box budget (ray[R_BUDGET]) runs out, setting counts[C_UNRESOLVED]. counts
 (records.C_*) gain the boxes the searches computed, the nodes visited and the patches
-searched. The kind is fixed at compile time (variants.Variant.accel): a kd-tree or a
-uniform grid is another record and another make_walk here, with no change to the drivers
-or the tile kernel.
+searched. The kind is fixed at compile time (variants.Variant.accel); each kind also makes
+its walk's scratch (walk_scratch: the stack, and the mailbox of the spatial kinds), so the
+drivers and the tile kernel are the same for every kind.
 
-BVH: nodes in depth-first order, node 0 the root; a leaf lists its patches as
+BVH (bvh.py): nodes in depth-first order, node 0 the root; a leaf lists its patches as
 items[first:first + count].
+kd-tree (kdtree.py) and uniform grid (grid.py): cells listing patches, walked by cell_walk.py;
+`patch_box` holds the patches' boxes (geometry.leaf_box), tested before a patch's search,
+`reach` the scene's largest coordinate (the slack of cell boundaries), and `mailbox` says how
+a cell searches its patches (cell_walk: clamped to the cell, or once per ray).
 """
 from __future__ import annotations
 
@@ -20,13 +24,21 @@ from collections import namedtuple
 
 import numpy as np
 
+from .cell_walk import make_grid_walk, make_kd_walk
 from .jit import njit, specialise
 from .ray import H_TIN, R_BUDGET, slab
 from .records import C_BOX_TESTS, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES, C_UNRESOLVED
 
 BvhNodes = namedtuple("BvhNodes", "node_box node_child leaf_first leaf_count items")
-# The walk's fixed stack: node indices and their entry t.
+KdNodes = namedtuple("KdNodes", "bounds reach node_axis node_split node_above node_first node_count items "
+                     "patch_box mailbox")
+GridCells = namedtuple("GridCells", "bounds reach dims cell cell_start items patch_box mailbox")
+# The BVH walk's fixed stack: node indices and their entry t.
 WalkStack = namedtuple("WalkStack", "nodes tin")
+# The cell walks' scratch: the kd-tree's stack of far children (node, entry and exit t; the grid
+# keeps its cell index and next boundaries in nodes[:3] and tin[:3]), the grid's steps, and the
+# mailbox: the last ray id per patch (one entry when the mailbox is off) and the thread's ray count.
+CellScratch = namedtuple("CellScratch", "nodes tin tout step mailbox ray_id")
 
 
 def bvh_nodes(bvh) -> BvhNodes:
@@ -39,6 +51,32 @@ def bvh_nodes(bvh) -> BvhNodes:
 def walk_stack(bvh) -> int:
     """Stack entries a walk of this BVH needs."""
     return bvh.depth + 2
+
+
+def kd_nodes(tree, patch_box, mailbox: bool) -> KdNodes:
+    """The kd-tree's record for the kernels (kdtree.KdTree; patch_box: geometry.leaf_box)."""
+    return KdNodes(tree.bounds, _reach(tree.bounds), tree.node_axis, tree.node_split, tree.node_above,
+                   tree.node_first, tree.node_count, tree.items, np.ascontiguousarray(patch_box), bool(mailbox))
+
+
+def grid_cells(grid, patch_box, mailbox: bool) -> GridCells:
+    """The grid's record for the kernels (grid.Grid; patch_box: geometry.leaf_box)."""
+    return GridCells(grid.bounds, _reach(grid.bounds), grid.dims, grid.cell, grid.cell_start, grid.items,
+                     np.ascontiguousarray(patch_box), bool(mailbox))
+
+
+def _reach(bounds) -> float:
+    return float(np.max(np.abs(bounds)))
+
+
+def walk_scratch(agg, size: int):
+    """The scratch of one kernel call's walk (tile_kernel.tile_scratch): the kind's own record,
+    its stack `size` entries long."""
+    if isinstance(agg, BvhNodes):
+        return WalkStack(np.zeros(size, np.int32), np.zeros(size))
+    size = max(size, 3)  # the grid's cell index and boundaries
+    return CellScratch(np.zeros(size, np.int64), np.zeros(size), np.zeros(size), np.zeros(3, np.int64),
+                       np.zeros(len(agg.patch_box) if agg.mailbox else 1, np.int64), np.zeros(1, np.int64))
 
 
 def _bvh_walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts):
@@ -103,4 +141,4 @@ def make_bvh_walk(search, any_hit: bool):
     return njit(cache=True, nogil=True, _nrt=False, inline='always')(walk)
 
 
-WALKS = {"bvh": make_bvh_walk}
+WALKS = {"bvh": make_bvh_walk, "kdtree": make_kd_walk, "grid": make_grid_walk}

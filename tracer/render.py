@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .camera import View, primary_rays, view_of
-from .aggregate import bvh_nodes, walk_stack
+from .accel import aggregate_for
 from .geometry import Geometry, prepare
 from .kernel_channels import CHANNEL_NAMES, Outputs, allocate
 from .options import CRITERION_CODE, SPLIT_CODE, Options
@@ -137,31 +137,22 @@ def unit_count(width: int, height: int, opts: Options) -> int:
 class KernelInputs:
     """What the kernels take for one frame: the scene records (Leaves, Trims, aggregate), the
     query, the scratch sizes (threshold-of-detail slope, points, walk stack, trim points, rays of a
-    bundle) and the
-    leaf-to-scene-patch map."""
+    bundle), the leaf-to-scene-patch map and the aggregate's build report (accel.aggregate_for)."""
 
     scene: tuple
     query: Query
     sizes: tuple
     leaf_patch: np.ndarray
+    accel: dict = field(default_factory=dict)
 
 
 NO_BUDGET = np.zeros((1, 1), np.int32)
-# Coherence option values whose code is still being written this session (issue 12): refused in
-# one line rather than ignored. Each entry goes when its feature lands.
-NOT_YET = {"accel": ("kdtree", "grid")}
 
 
-def check_available(opts: Options) -> None:
-    for name, values in NOT_YET.items():
-        if getattr(opts, name) in values:
-            raise ValueError(f"option {name}: {getattr(opts, name)!r} is not available in this build")
-
-
-def kernel_inputs(geom: Geometry, opts: Options, pixel_angle: float, budget=None) -> KernelInputs:
+def kernel_inputs(geom: Geometry, opts: Options, pixel_angle: float, budget=None, on_build=None) -> KernelInputs:
     """The records a tile kernel needs, derived once per frame. budget: (factor, (H, W) int32 base)
-    bounds each ray's boxes to factor * max(base, records.BUDGET_FLOOR); None: no bound."""
-    check_available(opts)
+    bounds each ray's boxes to factor * max(base, records.BUDGET_FLOOR); None: no bound. The
+    aggregate is built on first use (on_build: see accel.aggregate_for)."""
     criterion = CRITERION_CODE[opts.criterion]
     param = {"float": 0.0, "fixed": opts.fixed_size, "adaptive": 0.0,
              "mantissa": float(opts.mantissa_ulps)}[opts.criterion]
@@ -171,9 +162,10 @@ def kernel_inputs(geom: Geometry, opts: Options, pixel_angle: float, budget=None
     trims = Trims(*geom.trims_for(opts.trims))
     factor, base = (0.0, NO_BUDGET) if budget is None else (float(budget[0]), np.ascontiguousarray(budget[1], np.int32))
     query = Query(criterion, param, SPLIT_CODE[opts.split], geom.max_depth, geom.bits, factor, base)
+    agg = aggregate_for(geom, opts, on_build)
     cols, rows = bundle_shape(opts)
-    sizes = (float(slope), max(geom.max_points, 16), walk_stack(geom.bvh), max(geom.trim_points, 2), cols * rows)
-    return KernelInputs((leaves, trims, bvh_nodes(geom.bvh)), query, sizes, geom.leaf_patch)
+    sizes = (float(slope), max(geom.max_points, 16), agg.stack, max(geom.trim_points, 2), cols * rows)
+    return KernelInputs((leaves, trims, agg.record), query, sizes, geom.leaf_patch, agg.report)
 
 
 def thread_count(opts: Options) -> int:
@@ -221,7 +213,7 @@ def cache_summary(geom: Geometry) -> dict | None:
 
 def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float, *,
                on_tile=None, cancel: threading.Event | None = None, progress=None,
-               order=None, on_compile=None, driver: str = "closest", budget=None,
+               order=None, on_compile=None, on_build=None, driver: str = "closest", budget=None,
                view: View | None = None) -> Frame:
     """Trace given primary rays (H, W, 3) unit by unit (work_units: opts.order; the item buffer
     needs the view the rays come from); returns the filled Frame.
@@ -230,7 +222,9 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     its pixels, and the rectangle holding them); progress(n) advances a progress bar; `order`
     optionally permutes the work units (indices into work_units);
     on_compile(variant[, seconds]) is called before and after a kernel variant is compiled
-    or loaded from the cache (variants.compiled); driver: 'closest' hit, or 'any' (the first hit box found);
+    or loaded from the cache (variants.compiled); on_build(description[, seconds]) likewise around the
+    build of a kd-tree or grid (accel.aggregate_for; its figures go to frame.extras["accel"]);
+    driver: 'closest' hit, or 'any' (the first hit box found);
     budget: a box budget per ray (kernel_inputs), its exhaustion marked in the `unresolved` channel.
     """
     frame = Frame.empty(origins, dirs)
@@ -239,7 +233,8 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     if order is not None:
         units = [units[i] for i in order]
     frame.tiles_total = len(units)
-    inputs = kernel_inputs(geom, opts, pixel_angle, budget)
+    inputs = kernel_inputs(geom, opts, pixel_angle, budget, on_build)
+    frame.extras["accel"] = inputs.accel
     outs = frame.outputs()
     trace = no_trace()
     variant = variant_for(geom, opts, driver=driver)

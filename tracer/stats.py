@@ -171,15 +171,17 @@ def _summary(values) -> dict | None:
 
 def frame_stats(frame) -> dict:
     """Rays, hits, trace time, and each kernel counter's min/mean/max over all rays and over hits
-    (effort, effort_hits, nodes, nodes_hits, ...); the kernel variants compiled in this process."""
+    (effort, effort_hits, nodes, nodes_hits, ...); the kernel variant, and the acceleration
+    structure's build figures (accel.aggregate_for)."""
     out = {"rays": int(frame.hit.size), "hits": int(frame.hit.sum()), "time": float(frame.seconds)}
     for kc in COUNTERS:
         counts = getattr(frame, kc.name)
         if counts is not None:
             out[kc.name] = _summary(counts)
             out[f"{kc.name}_hits"] = _summary(counts[frame.hit])
-    if "variant" in frame.extras:
-        out["variant"] = frame.extras["variant"]
+    for key in ("variant", "accel"):
+        if key in frame.extras:
+            out[key] = frame.extras[key]
     return out
 
 

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from .aggregate import WALKS, WalkStack
+from .aggregate import WALKS, walk_scratch
 from .bundle import ONE, ZERO, bundle_rays, make_bundle_search, make_bvh_bundle_walk
 from .drivers import make_search
 from .jit import njit, specialise
@@ -33,9 +33,9 @@ def working_slots(inputs) -> int:
 
 def tile_scratch(inputs, thread_cache=None) -> TileScratch:
     """A thread's scratch for one kernel call (kernel_inputs' records): the sub-patch stack in the
-    working dtype, the aggregate's walk stack and the per-ray records. Made here, in numpy, so
-    the kernels allocate nothing (no reference counting, and no allocating kernel to compile).
-    thread_cache: the thread's surface_cache.ThreadCache, whose arrays hold the slots, if any."""
+    working dtype, the aggregate's walk scratch (its stack and mailbox) and the per-ray records. Made
+    here, in numpy, so the kernels allocate nothing (no reference counting, and no allocating kernel
+    to compile). thread_cache: the thread's surface_cache.ThreadCache, whose arrays hold the slots."""
     lv = inputs.scene[0]
     _, max_points, stack_nodes, trim_points, bundle = inputs.sizes
     slots = working_slots(inputs)
@@ -54,8 +54,8 @@ def tile_scratch(inputs, thread_cache=None) -> TileScratch:
                np.arange(slots).astype(np.uint32),  # unsigned slot indices: no negative-index fix-ups
                np.zeros(RAY_LEN), np.zeros((4, max_points)),
                np.zeros((MAX_SPLIT_DEPTH + 4, trim_points, 3)), np.zeros((MAX_SPLIT_DEPTH + 4, 6)), buf64, cache)
-    stack = WalkStack(np.zeros(stack_nodes, np.int32), np.zeros(stack_nodes))
-    return TileScratch(sl, stack, ray_scratch(max_points), bundle_rays(bundle, slots, stack_nodes))
+    return TileScratch(sl, walk_scratch(inputs.scene[2], stack_nodes), ray_scratch(max_points),
+                       bundle_rays(bundle, slots, stack_nodes))
 
 
 @njit(cache=True, nogil=True, _nrt=False)

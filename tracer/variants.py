@@ -25,8 +25,8 @@ _BUILT: dict = {}
 _LOCK = threading.Lock()
 
 
-def variant_for(geom, opts, *, trace: bool = False, driver: str = "closest", accel: str = "bvh") -> Variant:
-    """The variant a render of `geom` with `opts` needs."""
+def variant_for(geom, opts, *, trace: bool = False, driver: str = "closest") -> Variant:
+    """The variant a render of `geom` with `opts` needs (the aggregate kind is opts.accel)."""
     m = np.asarray(geom.deg_u)
     n = np.asarray(geom.deg_v)
     rational = np.asarray(geom.rational) != 0
@@ -39,8 +39,8 @@ def variant_for(geom, opts, *, trace: bool = False, driver: str = "closest", acc
     # compiles); other degrees (the generic split) and rational patches stay flags of their own.
     fast = bool((cubic | linear).any())
     return Variant(geom.precision, bool(rational.any()), fast, fast,
-                   bool((integral & ~cubic & ~linear).any()), trimmed, bool(trace), driver, accel,
-                   opts.bundle != "1x1" and not trace and driver == "closest" and accel == "bvh",
+                   bool((integral & ~cubic & ~linear).any()), trimmed, bool(trace), driver, opts.accel,
+                   opts.bundle != "1x1" and not trace and driver == "closest" and opts.accel == "bvh",
                    opts.cache and not trace)
 
 

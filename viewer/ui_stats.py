@@ -39,6 +39,7 @@ def ui_stats(state) -> bool:
             e = s.get(key)
             if e:
                 imgui.text(f"{label}: min {e['min']:.0f}  mean {e['mean']:.1f}  max {e['max']:.0f}")
+        _accel(s.get("accel"))
     e = r.error_stats
     if e:
         imgui.separator_text(f"vs float64 reference ({r.ref_seconds:.2f} s)")
@@ -57,6 +58,33 @@ def ui_stats(state) -> bool:
         imgui.text_disabled("position error: L1 norm, world units, over pixels both hit")
     _kernels()
     return False
+
+
+def accel_lines(a: dict) -> list:
+    """The acceleration structure's figures (frame_stats' "accel"), a few lines of text."""
+    if not a:
+        return []
+    from tracer.accel import KIND_NAMES
+    params = ", ".join(f"{k} {v}" for k, v in a.get("parameters", {}).items())
+    head = KIND_NAMES[a["kind"]] + (f" ({params})" if params else "")
+    if a["kind"] == "bvh":
+        return [f"{head}: {a['nodes']} nodes, depth {a['depth']}, {a['bytes'] / 2**20:.2f} MiB (built with the scene)"]
+    built = f"built in {a['build_seconds']:.3f} s" + ("" if a["built_now"] else " (reused)")
+    lines = [f"{head}, mailbox {'on' if a['mailbox'] else 'off'}: {built}, {a['bytes'] / 2**20:.2f} MiB"]
+    if a["kind"] == "kdtree":
+        lines.append(f"{a['nodes']} nodes, {a['leaves']} leaves ({a['empty_leaves']} empty), depth {a['depth']}, "
+                     f"{a['items']} items, {a['mean_items_per_full_leaf']:.2f} per non-empty leaf")
+    else:
+        nx, ny, nz = a["dims"]
+        lines.append(f"{nx}x{ny}x{nz} cells ({a['empty_cells']} empty), {a['items']} items, "
+                     f"{a['mean_items_per_full_cell']:.2f} per non-empty cell"
+                     + (f", coarsened {a['coarsened']:.2f}x to fit" if a["coarsened"] > 1.0 else ""))
+    return lines
+
+
+def _accel(a):
+    for line in accel_lines(a):
+        imgui.text(line)
 
 
 def _kernels():
