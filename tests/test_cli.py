@@ -32,7 +32,9 @@ CONTRACT = {"ray_origin": ("float64", 3), "ray_dir": ("float64", 3), "hit": ("bo
 # The contract's further channels that the primary-ray kernel computes on every render.
 FURTHER = {"nodes": ("int32", 0), "patches_tested": ("int32", 0), "surfaces_tested": ("int32", 0),
            "box_tests": ("int32", 0), "cache_hits": ("int32", 0), "cache_misses": ("int32", 0),
-           "unresolved": ("bool", 0)}
+           "unresolved": ("bool", 0),
+           # the lighting's (tracer/lighting.py), on by default
+           "shadow": ("float32", 0), "shadow_rays": ("int32", 0), "penumbra": ("int8", 0)}
 STAT_KEYS = {"rays", "hits", "time", "effort", "effort_hits", "error", "options", "size", "scene"}
 ERROR_KEYS = {"max", "min", "mean", "variance", "holes", "false_hits", "unresolved", "floor", "ratio", "inside_box",
               "inside_4ulp"}

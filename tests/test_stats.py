@@ -36,12 +36,17 @@ def synthetic_frame(h=6, w=5, seed=0):
     f.effort[:] = rng.integers(0, 500, (h, w)).astype(np.int32)
     f.nodes[:] = rng.integers(0, 60, (h, w)).astype(np.int32)
     f.patches_tested[:] = rng.integers(0, 8, (h, w)).astype(np.int32)
+    f.add_lighting(shadows=True)
+    f.radiance = None  # shaded from the channels (shade.py's fallback), as a frame traced without lighting
+    f.shadow[f.hit] = rng.random((h, w))[f.hit]
+    f.shadow_rays[f.hit] = rng.integers(0, 40, (h, w))[f.hit]
+    f.penumbra[f.hit] = rng.integers(-1, 2, (h, w))[f.hit]
     f.seconds = 0.25
     return f
 
 
 def copy_frame(f):
-    return Frame(*(getattr(f, k).copy() for k in AOV_NAMES), seconds=f.seconds)
+    return Frame(*(None if getattr(f, k) is None else getattr(f, k).copy() for k in AOV_NAMES), seconds=f.seconds)
 
 
 def scene_stub(lights=()):

@@ -21,6 +21,8 @@ BUNDLES = ("1x1", "2x2", "4x2", "2x4", "4x4", "8x8")  # columns x rows of pixels
 ACCELS = ("bvh", "kdtree", "grid")
 KD_SPLITS = ("sah", "middle")
 ORDERS = ("scanline", "peano", "itembuffer")
+ORIGINS = ("box_corner", "shift", "fixed_epsilon")  # where a secondary ray starts (lighting.py)
+PENUMBRAS = ("off", "expanded", "tmax")  # fast penumbra (penumbra.py)
 
 # Kernel codes: small ints so the numba kernels take scalars, not strings.
 CRITERION_CODE = {name: i for i, name in enumerate(CRITERIA)}
@@ -28,6 +30,7 @@ SPLIT_CODE = {name: i for i, name in enumerate(SPLITS)}
 
 _opt = partial(described, group="Tracer")
 _coh = partial(described, group="Coherence")
+_lit = partial(described, group="Lighting")
 
 
 @dataclass(frozen=True)
@@ -68,6 +71,26 @@ class Options(Record):
                             when={"cache": True})
     order: str = _coh("scanline", "pixel order: rows, the Peano curve (every quadrant finished before the next), "
                       "or patch by patch from a 64x64 item buffer", choices=ORDERS)
+    shadows: bool = _lit(True, "trace shadow rays to the lights (off: every light reaches every point facing it)")
+    reflections: bool = _lit(True, "trace mirror reflections of materials with `reflect`")
+    refractions: bool = _lit(True, "trace refractions of materials with `transmit`")
+    max_depth: int = _lit(3, "longest chain of reflected and refracted rays after the primary one", lo=0, hi=16)
+    light_samples: int = _lit(0, "samples per area light and shading point (0: each light's own `samples`)",
+                              lo=0, hi=4096, log=True)
+    origin: str = _lit("box_corner", "where secondary rays start: the hit box's corner on the side they leave, "
+                       "widened by origin_ulps (Dammertz 2.4); the hit point moved along the normal by the "
+                       "threshold of detail or the box size (Lempitsky's O+-); or moved by origin_epsilon "
+                       "world units", choices=ORIGINS)
+    origin_ulps: int = _lit(7, "box_corner: ulps of the working precision the corner is moved outwards",
+                            lo=0, hi=1 << 20, log=True, when={"origin": "box_corner"})
+    origin_epsilon: float = _lit(1e-4, "fixed_epsilon: world units the origin is moved along the normal",
+                                 lo=0.0, hi=1e6, when={"origin": "fixed_epsilon"})
+    penumbra: str = _lit("tmax", "fast penumbra (Lukaszewski): off traces every light sample; expanded first "
+                         "traces one ray to the light's centre through the patch boxes grown by the light "
+                         "(Lemma 3.1), and a point it finds lit traces no samples; tmax grows each box only "
+                         "by its own shrink factor (Lemma 4.2). The image is the same", choices=PENUMBRAS)
+    trivial_tests: bool = _lit(True, "decide shadow rays without tracing where the surface faces away from the "
+                               "light sample (Lischinski 6); the image is the same")
     mode: str = _opt("shaded", "what the image shows", choices=MODES, group="Display")
     tile_size: int = _opt(32, "tile edge in pixels (tiles render in parallel)", lo=4, hi=256, group="Render")
     threads: int = _opt(0, "render threads (0: one per core)", lo=0, hi=256, group="Render")

@@ -29,8 +29,13 @@ from .variants import compiled, label, variant_for
 
 CONTRACT_NAMES = ("ray_origin", "ray_dir", "hit", "t", "position", "box_min", "box_max",
                   "normal", "uv", "patch", "effort")
-# Every per-pixel array of a Frame: the rays, then the kernel channels.
-AOV_NAMES = CONTRACT_NAMES + tuple(n for n in CHANNEL_NAMES if n not in CONTRACT_NAMES)
+# What shading with secondary rays adds (lighting.py): name -> (dtype, trailing shape, value where unset).
+LIGHTING_CHANNELS = {"shadow": (np.float32, (), np.nan), "shadow_rays": (np.int32, (), 0),
+                     "penumbra": (np.int8, (), -1), "radiance": (np.float32, (3,), np.nan)}
+# Every per-pixel array of a Frame written to the .npz: the rays, the kernel channels, the lighting's
+# channels of the contract (radiance is the display's, not the contract's).
+AOV_NAMES = (CONTRACT_NAMES + tuple(n for n in CHANNEL_NAMES if n not in CONTRACT_NAMES)
+             + ("shadow", "shadow_rays", "penumbra"))
 
 
 @dataclass
@@ -56,6 +61,10 @@ class Frame:
     cache_hits: np.ndarray | None = None
     cache_misses: np.ndarray | None = None
     unresolved: np.ndarray | None = None
+    shadow: np.ndarray | None = None
+    shadow_rays: np.ndarray | None = None
+    penumbra: np.ndarray | None = None
+    radiance: np.ndarray | None = None
     seconds: float = 0.0
     tiles_done: int = 0
     tiles_total: int = 0
@@ -69,6 +78,13 @@ class Frame:
     @property
     def size(self):
         return self.hit.shape[1], self.hit.shape[0]
+
+    def add_lighting(self, shadows: bool) -> None:
+        """Allocate the lighting's channels (shadow and penumbra only where shadows are traced)."""
+        h, w = self.hit.shape
+        for name, (dtype, tail, unset) in LIGHTING_CHANNELS.items():
+            if shadows or name not in ("shadow", "penumbra"):
+                setattr(self, name, np.full((h, w) + tail, unset, dtype))
 
     def aovs(self) -> dict:
         """The contract's per-pixel arrays (dtypes as specified), with every kernel channel computed."""
@@ -214,7 +230,7 @@ def cache_summary(geom: Geometry) -> dict | None:
 def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float, *,
                on_tile=None, cancel: threading.Event | None = None, progress=None,
                order=None, on_compile=None, on_build=None, driver: str = "closest", budget=None,
-               view: View | None = None) -> Frame:
+               view: View | None = None, scene=None) -> Frame:
     """Trace given primary rays (H, W, 3) unit by unit (work_units: opts.order; the item buffer
     needs the view the rays come from); returns the filled Frame.
 
@@ -226,6 +242,8 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     build of a kd-tree or grid (accel.aggregate_for; its figures go to frame.extras["accel"]);
     driver: 'closest' hit, or 'any' (the first hit box found);
     budget: a box budget per ray (kernel_inputs), its exhaustion marked in the `unresolved` channel.
+    scene: the loaded scene of geom, to shade each unit with its secondary rays as it finishes
+    (lighting.py: the radiance, shadow, shadow_rays and penumbra channels); None: primary rays only.
     """
     frame = Frame.empty(origins, dirs)
     h, w = frame.hit.shape
@@ -248,6 +266,12 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
         frame.extras["view"] = view
 
     caches = thread_caches(geom, opts, inputs, thread_count(opts)) if variant.cache else None
+    lighting = None
+    if scene is not None:
+        from .lighting import Lighting
+        eye = view.eye if view is not None else origins[0, 0]
+        lighting = Lighting(scene, geom, opts, inputs, eye, on_compile)
+        frame.add_lighting(opts.shadows)
 
     def work(unit):
         if cancel is not None and cancel.is_set():
@@ -258,6 +282,8 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
         finally:
             if cache is not None:
                 caches.put(cache)
+        if lighting is not None:
+            lighting.shade_unit(frame, unit.pixels)
         return unit
 
     start = time.perf_counter()
@@ -273,6 +299,8 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
             if on_tile is not None:
                 on_tile(frame, unit)
     frame.seconds = time.perf_counter() - start
+    if lighting is not None:
+        frame.extras["lighting"] = lighting.report()
     return frame
 
 
@@ -289,7 +317,7 @@ def render(scene, opts: Options = Options(), *, size=None, view: View | None = N
     if geom.precision != opts.precision:
         raise ValueError(f"geometry is {geom.precision}, options ask for {opts.precision}")
     origins, dirs = primary_rays(view, width, height, opts.precision)
-    return trace_rays(geom, opts, origins, dirs, view.pixel_angle(height), view=view, **kwargs)
+    return trace_rays(geom, opts, origins, dirs, view.pixel_angle(height), view=view, scene=scene, **kwargs)
 
 
 # The reference's box budget per ray: this many times the boxes the frame's own ray computed (at

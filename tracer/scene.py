@@ -36,9 +36,11 @@ _TOP_KEYS = ("camera", "image", "objects", "materials", "lights")
 _CAMERA_KEYS = ("eye", "look_at", "up", "fov_deg")
 _IMAGE_KEYS = ("width", "height")
 _OBJECT_KEYS = ("file", "patches", "transform", "material", "name")
-_MATERIAL_KEYS = ("color", "reflect", "specular", "shininess")
+_MATERIAL_KEYS = ("color", "reflect", "specular", "shininess", "transmit", "ior")
 _PATCH_KEYS = ("degree", "points")
 _LIGHT_KEYS = ("type", "intensity", "color")
+AREA_SAMPLES = 16  # an area light's samples per shading point unless its "samples" says otherwise
+MAX_SAMPLES = 4096
 _LIGHT_SHAPE = {"point": ("position",), "sphere": ("center", "radius"),
                 "segment": ("a", "b"), "rect": ("corner", "edge1", "edge2")}
 _FILE_TYPES = (".bpt", ".obj", ".igs", ".iges")
@@ -51,6 +53,8 @@ class Material:
     reflect: float = 0.0
     specular: float = 0.3
     shininess: float = 40.0
+    transmit: float = 0.0  # refracted fraction (0..1)
+    ior: float = 1.5       # index of refraction of the material behind the surface
 
 
 @dataclass
@@ -66,6 +70,7 @@ class Light:
     corner: np.ndarray | None = None    # rect
     edge1: np.ndarray | None = None     # rect
     edge2: np.ndarray | None = None     # rect
+    samples: int = AREA_SAMPLES         # area lights: samples per shading point
 
     def centre(self) -> np.ndarray:
         """Centre of the emitter, (3,) float64."""
@@ -370,6 +375,12 @@ def _material(name, m, key) -> Material:
         mat.specular = _number(m["specular"], f"{key}.specular", lo=0.0)
     if "shininess" in m:
         mat.shininess = _number(m["shininess"], f"{key}.shininess", lo=0.0, open_lo=True)
+    if "transmit" in m:
+        mat.transmit = _number(m["transmit"], f"{key}.transmit", lo=0.0, hi=1.0)
+    if "ior" in m:
+        mat.ior = _number(m["ior"], f"{key}.ior", lo=0.0, open_lo=True, hi=100.0)
+    if mat.reflect + mat.transmit > 1.0:
+        raise SceneError(f"reflect + transmit must be at most 1, got {mat.reflect:g} + {mat.transmit:g}", key=key)
     return mat
 
 
@@ -382,7 +393,8 @@ def _light(spec, key) -> Light:
         raise SceneError(f"expected one of: {', '.join(_LIGHT_SHAPE)}, got {_show(kind)}",
                          key=f"{key}.type")
     shape = _LIGHT_SHAPE[kind]
-    _keys(spec, _LIGHT_KEYS + shape, key, required=("type",) + shape)
+    area = () if kind == "point" else ("samples",)
+    _keys(spec, _LIGHT_KEYS + shape + area, key, required=("type",) + shape)
     light = Light(kind, _number(spec.get("intensity", 1.0), f"{key}.intensity", lo=0.0),
                   _numbers(spec.get("color", [1.0, 1.0, 1.0]), 3, f"{key}.color", lo=0.0))
     for k in shape:
@@ -390,6 +402,10 @@ def _light(spec, key) -> Light:
             light.radius = _number(spec[k], f"{key}.radius", lo=0.0, open_lo=True)
         else:
             setattr(light, k, _numbers(spec[k], 3, f"{key}.{k}"))
+    if "samples" in spec:
+        light.samples = _integer(spec["samples"], f"{key}.samples", 1, MAX_SAMPLES)
+    elif kind == "point":
+        light.samples = 1
     # zero-size area lights would divide by zero when sampled
     if kind == "segment" and np.array_equal(light.a, light.b):
         raise SceneError("segment light has zero length (a == b)", key=key)
@@ -549,3 +565,9 @@ def _numbers(v, count, key, lo=None, hi=None, what=None) -> np.ndarray:
     for i, x in enumerate(v):
         _number(x, f"{key}[{i}]", lo=lo, hi=hi)
     return np.array(v, dtype=np.float64)
+
+
+def _integer(v, key, lo: int, hi: int) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+        raise SceneError(f"expected an integer in [{lo}, {hi}], got {_show(v)}", key=key)
+    return int(v)

@@ -5,10 +5,11 @@ whole image or one tile rectangle (y0, y1, x0, x1), so the viewer can upload a
 tile as it finishes and the CLI can write the same pixels to a PNG unchanged;
 or (k, 3) for a list of pixels (a work unit scattered over the image).
 
-- shaded: Lambert + Phong in linear light, then the sRGB transfer curve. Every
-  light counts as a point at its centre, without shadows or distance falloff;
-  the sum of light intensities is normalised to at most 1 so a second light
-  does not blow out the image. No lights: a headlight at the eye.
+- shaded: the frame's radiance (lighting.py: shadows, area lights, reflection and
+  refraction) through the sRGB transfer curve; a frame traced without lighting
+  gets Lambert + Phong with every light a point at its centre, unshadowed. No
+  distance falloff; the sum of light intensities is normalised to at most 1 so
+  a second light does not blow out the image. No lights: a headlight at the eye.
 - normal: (n + 1) / 2; uv: (u, v, 0); depth: distance along the ray on viridis,
   near = bright; patch: a colour hashed from the patch id.
 Misses show a dark grey vertical gradient in every mode.
@@ -29,6 +30,12 @@ def srgb_encode(linear: np.ndarray) -> np.ndarray:
     """The sRGB transfer curve applied to linear values in [0, 1]."""
     x = np.clip(linear, 0.0, 1.0)
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+
+
+def srgb_decode(encoded: np.ndarray) -> np.ndarray:
+    """Linear values of sRGB-encoded ones in [0, 1]."""
+    x = np.clip(encoded, 0.0, 1.0)
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
 
 
 def background(height: int, y0: int, y1: int, width: int) -> np.ndarray:
@@ -133,7 +140,9 @@ def shade(frame, scene, mode: str = "shaded", rect=None, *, pixels=None, depth_r
     hit = frame.hit[sl]
     if not hit.any():
         return out
-    if mode == "shaded":
+    if mode == "shaded" and frame.radiance is not None:
+        out[hit] = srgb_encode(frame.radiance[sl][hit])
+    elif mode == "shaded":
         lin = _shaded(scene, frame.position[sl][hit], frame.normal[sl][hit], frame.ray_dir[sl][hit],
                       frame.ray_origin[sl][hit], frame.patch[sl][hit])
         out[hit] = srgb_encode(lin)

@@ -116,6 +116,35 @@ register(Channel("depth", "distance", "world units", "linear", "viridis",
                  "distance from the eye to the hit along the ray", lambda f, r=None: distance(f)))
 register(Channel("box_size", "final box size", "world units, L1", "log", "viridis",
                  "L1 diameter of the final hit box", _box_size))
+
+
+def _lighting_values(name, transform):
+    def values(frame, ref=None):
+        v = getattr(frame, name)
+        if v is None:
+            raise ValueError(f"channel {name!r}: this frame was traced without "
+                             + ("shadows" if name != "shadow_rays" else "lighting"))
+        return np.where(frame.hit, transform(v.astype(np.float64)), np.nan)
+    return values
+
+
+def _no_rays(frame, ref=None):
+    return [(frame.hit & (frame.shadow_rays <= 0), BACKGROUND, "no shadow ray traced")]
+
+
+def _penumbra_specials(frame, ref=None):
+    return [(frame.hit & (frame.penumbra < 0), BACKGROUND, "not classified (penumbra off, or no area light)")]
+
+
+register(Channel("shadow", "shadow", "fraction of light", "linear", "inferno",
+                 "fraction of the lights' intensity reaching the hit point unoccluded (1 fully lit)",
+                 _lighting_values("shadow", lambda v: v)))
+register(Channel("shadow_rays", "shadow rays", "rays", "log", "inferno",
+                 "shadow rays traced for the pixel (all lights, samples and ray-tree vertices)",
+                 _lighting_values("shadow_rays", lambda v: np.where(v > 0, v, np.nan)), specials=_no_rays))
+register(Channel("penumbra", "penumbra class", "0 lit, 1 penumbra, 2 umbra", "linear", "viridis",
+                 "fast penumbra classification: 0 proven lit without samples, 1 sampled",
+                 _lighting_values("penumbra", lambda v: np.where(v >= 0, v, np.nan)), specials=_penumbra_specials))
 register(Channel("patch", "patch id", "index", "categorical", "",
                  "global index of the hit patch (hashed colours)",
                  lambda f, r=None: np.where(f.hit, f.patch.astype(np.float64), np.nan)))
@@ -182,6 +211,24 @@ def frame_stats(frame) -> dict:
     for key in ("variant", "accel"):
         if key in frame.extras:
             out[key] = frame.extras[key]
+    if "lighting" in frame.extras:
+        out["lighting"] = lighting_stats(frame)
+    return out
+
+
+def lighting_stats(frame) -> dict:
+    """Shadow rays per hit pixel, the share of hit pixels the fast penumbra proved lit, time per
+    phase (lighting.py, summed over threads) and the expanded data sets' builds."""
+    hit = frame.hit
+    n = max(int(hit.sum()), 1)
+    out = dict(frame.extras["lighting"])
+    out["shadow_rays_per_hit"] = float(frame.shadow_rays[hit].sum()) / n if frame.shadow_rays is not None else 0.0
+    if frame.penumbra is not None:
+        klass = frame.penumbra[hit]
+        out["proven_lit_share"] = float((klass == 0).sum()) / n
+        out["sampled_share"] = float((klass == 1).sum()) / n
+    if frame.shadow is not None:
+        out["shadow"] = _summary(frame.shadow[hit])
     return out
 
 

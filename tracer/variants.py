@@ -54,8 +54,10 @@ def label(variant: Variant) -> str:
 
 
 def _kernel(kind: str, variant: Variant):
+    from .ray_batch import make_batch_kernel, make_penumbra_kernel
     from .tile_kernel import make_ray_kernel, make_tile_kernel
-    factory = {"tile": make_tile_kernel, "ray": make_ray_kernel}[kind]
+    factory = {"tile": make_tile_kernel, "ray": make_ray_kernel, "batch": make_batch_kernel,
+               "penumbra": make_penumbra_kernel}[kind]
     key = (kind, variant._replace(precision=""))  # one dispatcher serves both precisions
     with _LOCK:
         if key not in _BUILT:
@@ -64,7 +66,8 @@ def _kernel(kind: str, variant: Variant):
 
 
 def compiled(kind: str, variant: Variant, args: tuple, on_compile=None):
-    """The kernel `kind` ('tile' or 'ray') of `variant`, compiled for the types of `args`.
+    """The kernel `kind` ('tile', 'ray', or ray_batch's 'batch' and 'penumbra') of `variant`,
+    compiled for the types of `args`.
 
     The first request for a variant in a process compiles it or loads it from the disk cache;
     on_compile(variant) is called before that work starts and on_compile(variant, seconds)

@@ -251,7 +251,7 @@ class RenderWorker:
         o, d = primary_rays(view, cw, ch, opts.precision)
         self._phase(job, "coarse")
         coarse = trace_rays(geom, opts.with_(tile_size=max(8, opts.tile_size)), o, d, view.pixel_angle(ch),
-                            cancel=cancel, on_compile=self._on_compile(job), view=view)
+                            cancel=cancel, on_compile=self._on_compile(job), view=view, scene=scene)
         if cancel.is_set():
             return self._emit("cancelled", job)
         mode = self._mode_of(job)
@@ -285,7 +285,8 @@ class RenderWorker:
         hold = self._hold if self._hold is not None and not self._hold.is_set() else None
         self._phase(job, "full")
         frame = trace_rays(geom, opts, origins, dirs, view.pixel_angle(height), on_tile=on_tile,
-                           cancel=TileCancel(cancel, hold), order=unit_order(width, height, opts), view=view)
+                           cancel=TileCancel(cancel, hold), order=unit_order(width, height, opts), view=view,
+                           scene=scene)
         if cancel.is_set() or frame.tiles_done < frame.tiles_total:
             return self._emit("cancelled", job)
         self._emit("frame", job, frame)

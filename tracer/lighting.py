@@ -1,0 +1,290 @@
+"""Shading with secondary rays: shadows, reflection and refraction, per work unit.
+
+After the tile kernel has traced a unit's primary rays, the same render thread shades its hit
+pixels here (render.trace_rays), so the viewer shows lit tiles as they finish. The ray tree is
+walked breadth first in numpy ("wavefront"): every vertex (a hit) gets its direct light, then
+spawns its reflected and refracted rays, traced together through ray_batch's closest-hit
+kernel; their hits are the next level's vertices, up to options.max_depth levels after the
+primary one. Misses see the background's grey.
+
+Direct light at a vertex: ambient plus Lambert + Phong per light sample (light_samples.py),
+each sample weighted by its visibility: 0 where the sample lies behind the surface (decided
+without a ray where options.trivial_tests, Lischinski 6) or the shadow ray from the robust
+origin (origins.py) to it is occluded (ray_batch's any-hit kernel). Area lights first ask the
+fast penumbra test (penumbra.py) and skip the samples of points it proves lit. Neither test
+changes a bit of the image: they skip only rays whose answer is already known.
+
+Materials: `reflect` is the mirror fraction, `transmit` the refracted one; the refracted part
+is split by Fresnel's reflectance (Schlick's approximation, total internal reflection included)
+into more reflection and the refraction proper; what is left (1 - reflect - transmit) is the
+surface's own Lambert + Phong colour. Patches have no consistent orientation, so a ray tree
+tracks whether it is inside a refracting body by counting the refractions along it.
+
+Threshold of detail (adaptive criterion): a secondary ray starts with the threshold its parent
+had at the hit, T0' = T0 + dT * t, and keeps the parent's growth per unit length (Lempitsky 3.6).
+"""
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .light_samples import points, sample_count, seeds
+from .origins import patch_ulps, robust_origins
+from .penumbra import LIT, PENUMBRA, UNCLASSIFIED, expanded_set, inside, scene_box
+from .ray_batch import BatchTracer, batch_rays
+from .scene import Light
+from .shade import AMBIENT, BG_BOTTOM, BG_TOP, srgb_decode
+
+PHASES = ("shadow_rays", "penumbra_tests", "secondary_rays", "shading")
+
+
+@dataclass
+class Vertices:
+    """m hits of one level of the ray trees of a unit: the unit's pixel index, the path code (1
+    primary; 2c reflected, 2c + 1 refracted from c), the weight of their radiance, the hit box
+    and its centre, the unit normal facing the incoming ray, the incoming unit direction, the
+    patch, the threshold of detail there, and whether the path is inside a refracting body."""
+
+    pix: np.ndarray
+    code: np.ndarray
+    weight: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    pos: np.ndarray
+    normal: np.ndarray
+    d: np.ndarray
+    patch: np.ndarray
+    threshold: np.ndarray
+    inside: np.ndarray
+
+    def take(self, keep) -> "Vertices":
+        return Vertices(*(getattr(self, f)[keep] for f in self.__dataclass_fields__))
+
+
+def _unit(v):
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def facing(normal, d):
+    """Normals turned to face against the directions d."""
+    return np.where(np.sum(normal * d, axis=-1, keepdims=True) > 0, -normal, normal)
+
+
+class Lighting:
+    """What shading a frame's units needs, built once per frame (render.trace_rays)."""
+
+    def __init__(self, scene, geom, opts, inputs, eye, on_compile=None):
+        self.opts = opts
+        self.tracer = BatchTracer(geom, opts, inputs, on_compile)
+        self.slope = float(inputs.sizes[0])  # threshold of detail per unit distance (adaptive)
+        mats = scene.materials
+        self.kd = np.array([m.color for m in mats], np.float64).reshape(-1, 3)
+        self.ks, self.ns = (np.array([getattr(m, k) for m in mats], np.float64) for k in ("specular", "shininess"))
+        self.reflect = np.array([m.reflect for m in mats]) if opts.reflections else np.zeros(len(mats))
+        self.transmit = np.array([m.transmit for m in mats]) if opts.refractions else np.zeros(len(mats))
+        self.ior = np.array([m.ior for m in mats], np.float64)
+        self.patch_material = np.asarray(scene.patch_material, np.int64)
+        self.ulp = patch_ulps(geom)
+        lights = list(scene.lights or []) or [Light("point", 1.0, np.ones(3), position=np.asarray(eye, np.float64))]
+        total = sum(float(li.intensity) for li in lights)
+        self.lights = lights
+        self.rgb = [np.asarray(li.color, np.float64) * li.intensity / max(total, 1.0) for li in lights]
+        weights = np.array([float(li.intensity) for li in lights])
+        self.share = weights / weights.sum() if weights.sum() > 0 else np.full(len(lights), 1.0 / len(lights))
+        self.counts = [sample_count(li, opts.light_samples) for li in lights]
+        self.sets = [expanded_set(geom, li, opts.penumbra) if opts.shadows and opts.penumbra != "off"
+                     and li.type != "point" else None for li in lights]
+        self.box = scene_box(geom)
+        self.width = None
+        self.seconds = dict.fromkeys(PHASES, 0.0)
+        self.centre_rays = 0
+        self._lock = threading.Lock()
+
+    def _clock(self, phase, start):
+        with self._lock:
+            self.seconds[phase] += time.perf_counter() - start
+
+    # ---- a unit ------------------------------------------------------------------------
+
+    def shade_unit(self, frame, pixels: np.ndarray) -> None:
+        """Radiance, shadow, shadow_rays and penumbra of a unit's pixels (k, 2) into frame."""
+        ys, xs = pixels[:, 0], pixels[:, 1]
+        hit = frame.hit[ys, xs]
+        if not hit.any():
+            return
+        ids = (ys.astype(np.int64) * frame.hit.shape[1] + xs)[hit]
+        k = len(ids)
+        v = self._primary(frame, ys[hit], xs[hit])
+        radiance = np.zeros((k, 3))
+        rays = np.zeros(k, np.int32)
+        for depth in range(self.opts.max_depth + 1):
+            start = time.perf_counter()
+            local, kr, kt, eta = self._split(v)
+            direct, fraction, traced, klass = self._direct(v, ids[v.pix])
+            np.add.at(radiance, v.pix, v.weight * local[:, None] * direct)
+            np.add.at(rays, v.pix, traced)
+            if depth == 0:
+                shadow, penumbra = fraction, klass
+            self._clock("shading", start)
+            if depth == self.opts.max_depth or len(v.pix) == 0:
+                break
+            v = self._spawn(v, kr, kt, eta, radiance)
+        frame.radiance[ys[hit], xs[hit]] = radiance
+        frame.shadow_rays[ys[hit], xs[hit]] = rays
+        if self.opts.shadows:
+            frame.shadow[ys[hit], xs[hit]] = shadow
+            frame.penumbra[ys[hit], xs[hit]] = penumbra
+
+    def _primary(self, frame, ys, xs) -> Vertices:
+        d = _unit(frame.ray_dir[ys, xs])
+        dist = frame.t[ys, xs] * np.linalg.norm(frame.ray_dir[ys, xs], axis=-1)
+        m = len(ys)
+        return Vertices(np.arange(m), np.ones(m, np.int64), np.ones((m, 3)), frame.box_min[ys, xs],
+                        frame.box_max[ys, xs], frame.position[ys, xs], facing(frame.normal[ys, xs], d), d,
+                        frame.patch[ys, xs], self.slope * dist, np.zeros(m, bool))
+
+    def _split(self, v: Vertices):
+        """Per vertex: the surface's own share, the reflected and the refracted weights, and the
+        ratio of refractive indices across the surface (Fresnel by Schlick)."""
+        mat = self.patch_material[v.patch]
+        reflect, transmit, ior = self.reflect[mat], self.transmit[mat], self.ior[mat]
+        eta = np.where(v.inside, ior, 1.0 / ior)
+        cos_i = np.clip(-np.sum(v.d * v.normal, axis=1), 0.0, 1.0)
+        sin2_t = eta * eta * (1.0 - cos_i * cos_i)
+        r0 = ((1.0 - eta) / (1.0 + eta)) ** 2
+        fresnel = np.where(sin2_t >= 1.0, 1.0, r0 + (1.0 - r0) * (1.0 - cos_i) ** 5)
+        return 1.0 - reflect - transmit, reflect + transmit * fresnel, transmit * (1.0 - fresnel), eta
+
+    # ---- direct light ---------------------------------------------------------------
+
+    def _direct(self, v: Vertices, pixel_ids):
+        """(radiance (m, 3), shadow fraction (m,), shadow rays traced (m,), penumbra class (m,))."""
+        m = len(v.pix)
+        mat = self.patch_material[v.patch]
+        kd, ks, ns = self.kd[mat], self.ks[mat][:, None], self.ns[mat][:, None]
+        out = AMBIENT * kd
+        fraction = np.zeros(m)
+        traced = np.zeros(m, np.int32)
+        klass = np.full(m, UNCLASSIFIED, np.int8)
+        view = -v.d
+        for li, light in enumerate(self.lights):
+            count = self.counts[li]
+            lp = points(light, v.pos, seeds(pixel_ids, v.code, li), count)
+            vis, rays, lit = self._visibility(v, lp, li, pixel_ids)
+            traced += rays
+            if lit is not None:
+                klass = np.maximum(klass, np.where(lit, LIT, PENUMBRA).astype(np.int8))
+            glow = np.zeros((m, 3))
+            seen = np.zeros(m)
+            for s in range(count):  # sample by sample: the same sums whatever m
+                l_dir = _unit(lp[:, s] - v.pos)
+                ndl = np.sum(v.normal * l_dir, axis=1, keepdims=True)
+                r = 2.0 * ndl * v.normal - l_dir
+                rdv = np.clip(np.sum(r * view, axis=1, keepdims=True), 0.0, 1.0)
+                on = vis[:, s:s + 1]
+                glow += np.where(on, kd * ndl + ks * rdv ** ns, 0.0)
+                seen += vis[:, s]
+            out = out + glow * (self.rgb[li] / count)
+            fraction += self.share[li] * seen / count
+        return out, fraction, traced, klass
+
+    def _visibility(self, v: Vertices, lp, li, pixel_ids):
+        """(visible (m, S) bool, rays traced (m,), proven lit (m,) bool or None where not asked)."""
+        m, count = lp.shape[:2]
+        front = np.einsum("mk,msk->ms", v.normal, lp - v.pos[:, None]) > 0.0
+        if not self.opts.shadows or m == 0:
+            return front, np.zeros(m, np.int32), None
+        origin = robust_origins(self.opts.origin, lo=v.lo, hi=v.hi, position=v.pos, normal=v.normal,
+                                ulp=self.ulp[v.patch], ulps=self.opts.origin_ulps, threshold=v.threshold,
+                                epsilon=self.opts.origin_epsilon)
+        need = front if self.opts.trivial_tests else np.ones_like(front)
+        lit = None
+        if self.sets[li] is not None:
+            start = time.perf_counter()
+            lit = self._proven_lit(origin, li, v.threshold, need.any(axis=1), lp)
+            need = need & ~lit[:, None]
+            self._clock("penumbra_tests", start)
+        start = time.perf_counter()
+        rows, cols = np.nonzero(need)
+        occluded = np.zeros((m, count), bool)
+        if len(rows):
+            o = origin[rows]
+            dt = self.slope * np.linalg.norm(lp[rows, cols] - o, axis=1)
+            rays = batch_rays(o, lp[rows, cols] - o, 0.0, 1.0, v.threshold[rows], dt)
+            occluded[rows, cols] = self.tracer.occluded(rays)[0]
+        self._clock("shadow_rays", start)
+        return front & ~occluded, need.sum(axis=1).astype(np.int32), lit
+
+    def _proven_lit(self, origin, li, threshold, asked, lp):
+        """(m,) bool: Lemma 3.1 / 4.2 (penumbra.py) prove every sample ray from these origins to
+        the sample points lp (m, S, 3) unoccluded."""
+        lit = np.zeros(len(origin), bool)
+        ask = asked if self.opts.penumbra != "tmax" else asked & inside(origin, self.box)
+        idx = np.nonzero(ask)[0]
+        if len(idx):
+            es = self.sets[li]
+            count = lp.shape[1]
+            o = origin[idx]
+            centre = batch_rays(o, self.lights[li].centre() - o, 0.0, 1.0)
+            ends = lp[idx].reshape(-1, 3)
+            starts = np.repeat(o, count, axis=0)
+            samples = batch_rays(starts, ends - starts, 0.0, 1.0, np.repeat(threshold[idx], count),
+                                 self.slope * np.linalg.norm(ends - starts, axis=1))
+            lit[idx] = self.tracer.proven_lit(es.record, es.stack, es.grown, centre, samples, count)[0]
+            with self._lock:
+                self.centre_rays += len(idx)
+        return lit
+
+    # ---- secondary rays --------------------------------------------------------------
+
+    def _spawn(self, v: Vertices, kr, kt, eta, radiance) -> Vertices:
+        """The next level: reflected and refracted rays of v, traced; misses add the background."""
+        start = time.perf_counter()
+        cos_i = np.clip(-np.sum(v.d * v.normal, axis=1), 0.0, 1.0)
+        parts = []
+        refl = np.nonzero(kr > 0)[0]
+        if len(refl):
+            d = _unit(v.d[refl] + 2.0 * cos_i[refl, None] * v.normal[refl])
+            parts.append((refl, d, v.normal[refl], kr[refl], 2 * v.code[refl], v.inside[refl]))
+        k2 = 1.0 - eta * eta * (1.0 - cos_i * cos_i)
+        refr = np.nonzero((kt > 0) & (k2 > 0))[0]
+        if len(refr):
+            e = eta[refr, None]
+            d = _unit(e * v.d[refr] + (e * cos_i[refr, None] - np.sqrt(k2[refr, None])) * v.normal[refr])
+            parts.append((refr, d, -v.normal[refr], kt[refr], 2 * v.code[refr] + 1, ~v.inside[refr]))
+        if not parts:
+            return v.take(np.zeros(0, np.int64))
+        src = np.concatenate([p[0] for p in parts])
+        d = np.concatenate([p[1] for p in parts])
+        side = np.concatenate([p[2] for p in parts])
+        weight = v.weight[src] * np.concatenate([p[3] for p in parts])[:, None]
+        code = np.concatenate([p[4] for p in parts])
+        inside_now = np.concatenate([p[5] for p in parts])
+        origin = robust_origins(self.opts.origin, lo=v.lo[src], hi=v.hi[src], position=v.pos[src], normal=side,
+                                ulp=self.ulp[v.patch[src]], ulps=self.opts.origin_ulps, threshold=v.threshold[src],
+                                epsilon=self.opts.origin_epsilon)
+        out = self.tracer.closest(batch_rays(origin, d, 0.0, np.inf, v.threshold[src], self.slope))
+        hit = out.hit[0]
+        miss = ~hit
+        np.add.at(radiance, v.pix[src[miss]], weight[miss] * environment(d[miss]))
+        self._clock("secondary_rays", start)
+        t = out.t[0, hit]
+        return Vertices(v.pix[src[hit]], code[hit], weight[hit], out.box_min[0, hit], out.box_max[0, hit],
+                        out.position[0, hit], facing(out.normal[0, hit], d[hit]), d[hit], out.patch[0, hit],
+                        v.threshold[src[hit]] + self.slope * t, inside_now[hit])
+
+    def report(self) -> dict:
+        """Time per phase (summed over threads), centre rays of the penumbra tests, build figures."""
+        return {"seconds": {k: round(s, 4) for k, s in self.seconds.items()}, "centre_rays": self.centre_rays,
+                "expanded_sets": [s.report for s in self.sets if s is not None]}
+
+
+def environment(d: np.ndarray) -> np.ndarray:
+    """Linear radiance of the background's grey seen along unit directions d (k, 3): lighter
+    upwards (+z), between the display gradient's ends."""
+    g = BG_BOTTOM + (BG_TOP - BG_BOTTOM) * 0.5 * (1.0 + d[:, 2:3])
+    return np.repeat(srgb_decode(g), 3, axis=1)
