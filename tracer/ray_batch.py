@@ -64,14 +64,20 @@ def make_batch_kernel(variant):
 
 # What the penumbra kernel's leaf visits read (passed where the walk passes the leaves through):
 # the scene's leaves and trims, the grown boxes (n_leaves, 6), the sample rays (m * S, RB_LEN) of
-# the m points (S = count), the point being tested (state[0]) and the sample's ray and hit records.
+# the m points (S = count), the point being tested (state[0]) and the walk (state[1]: 0 boxes
+# alone, 1 with the samples' searches; state[2] the grown boxes holding the origin met so far), and
+# the sample's ray and hit records.
 PenumbraContext = namedtuple("PenumbraContext", "leaves trims grown samples count state ray hit counts")
 
 
+MAX_NEAR = 8  # grown boxes holding a point's origin beyond which the point is sampled, not tested
+
+
 def _penumbra_visit(p, ctx, trims, ray, hit, q, sl, trace):
-    """The centre ray of a point met leaf p's grown box. A box that holds the ray's origin (the
-    point's own surface, and its neighbours) says nothing by itself: there the samples' own patch
-    searches decide (any hit: not proven lit). Any other grown box: not proven lit."""
+    """The centre ray of a point met leaf p's grown box. A box that does not hold the ray's origin
+    means "not proven lit". One that does (the point's own surface, and its neighbours) says
+    nothing by itself: the first walk (state[1] = 0) passes it by, the second lets the samples'
+    own patch searches of that leaf decide (any hit: not proven lit)."""
     g = ctx.grown
     holds = True
     for c in range(3):
@@ -79,6 +85,11 @@ def _penumbra_visit(p, ctx, trims, ray, hit, q, sl, trace):
             holds = False
     if not holds:
         hit[H_TIN] = ray[R_TMIN]
+        return 1
+    if ctx.state[1] == 0:
+        ctx.state[2] += 1
+        if ctx.state[2] > MAX_NEAR:  # a light so large that many boxes hold the point: sample it
+            hit[H_TIN] = ray[R_TMIN]
         return 1
     first = ctx.state[0] * ctx.count
     spent = 0
@@ -94,18 +105,25 @@ def _penumbra_visit(p, ctx, trims, ray, hit, q, sl, trace):
 
 
 def _trace_penumbra(rays, ctx, agg, q, lit, effort, trace, scratch):
-    """The penumbra kernel template (see make_penumbra_kernel)."""
+    """The penumbra kernel template (see make_penumbra_kernel): per point, a walk over the grown
+    boxes alone, then, if it met only boxes holding the origin, a walk with the samples' searches."""
     sl, stack, rs, _ = scratch
     for i in range(rays.shape[0]):
         r = rays[i]
-        make_ray(rs.ray, r[0], r[1], r[2], r[3], r[4], r[5], r[RB_TMIN], r[RB_T0], r[RB_DT])
-        rs.hit[H_TIN] = r[RB_TMAX]
-        for k in range(COUNTER_LEN):
-            rs.counts[k] = 0
         ctx.state[0] = i
-        walk(agg, ctx, ctx.trims, rs.ray, rs.hit, q, sl, stack, trace, rs.counts)  # noqa: F821
-        lit[i] = rs.hit[H_TIN] >= r[RB_TMAX]
-        effort[i] = rs.counts[C_EFFORT]
+        effort[i] = 0
+        for second in range(2):
+            make_ray(rs.ray, r[0], r[1], r[2], r[3], r[4], r[5], r[RB_TMIN], r[RB_T0], r[RB_DT])
+            rs.hit[H_TIN] = r[RB_TMAX]
+            for k in range(COUNTER_LEN):
+                rs.counts[k] = 0
+            ctx.state[1] = second
+            ctx.state[2] = 0
+            walk(agg, ctx, ctx.trims, rs.ray, rs.hit, q, sl, stack, trace, rs.counts)  # noqa: F821
+            effort[i] += rs.counts[C_EFFORT]
+            lit[i] = rs.hit[H_TIN] >= r[RB_TMAX]
+            if not lit[i]:
+                break
 
 
 def make_penumbra_kernel(variant):
@@ -174,7 +192,7 @@ class BatchTracer:
         lit, effort = np.zeros(m, bool), np.zeros(m, np.int32)
         if m:
             inp = self.inputs
-            ctx = PenumbraContext(inp.scene[0], inp.scene[1], grown, samples, count, np.zeros(1, np.int64),
+            ctx = PenumbraContext(inp.scene[0], inp.scene[1], grown, samples, count, np.zeros(3, np.int64),
                                   np.zeros(len(self.scratch().ray.ray)), np.zeros(len(self.scratch().ray.hit)),
                                   np.zeros(COUNTER_LEN, np.int64))
             scratch = self.scratch()._replace(stack=WalkStack(np.zeros(stack, np.int32), np.zeros(stack)))
