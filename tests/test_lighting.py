@@ -11,7 +11,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import scenes as S  # noqa: E402
 from tracer import light_samples as LS  # noqa: E402
-from tracer.camera import View  # noqa: E402
+from tracer.cone_search import cone_meets  # noqa: E402
+from tracer.ray import RAY_LEN, make_ray, slab  # noqa: E402
 from tracer.options import Options  # noqa: E402
 from tracer.origins import robust_origins  # noqa: E402
 from tracer.render import render  # noqa: E402
@@ -100,9 +101,11 @@ def teapot_light(samples=8, penumbra="off", **kw):
     return scene, Options(penumbra=penumbra, **kw)
 
 
-@pytest.mark.parametrize("method", ["expanded", "tmax"])
-def test_fast_penumbra_is_bit_identical_and_traces_fewer_rays(method):
-    scene, off = teapot_light()
+@pytest.mark.parametrize("method, settings", [("expanded", {}), ("tmax", {}), ("tmax", {"split": "cross"}),
+                                              ("tmax", {"criterion": "fixed", "fixed_size": 0.05})],
+                         ids=["expanded", "tmax", "tmax-samples-decide", "tmax-fixed"])
+def test_fast_penumbra_is_bit_identical_and_traces_fewer_rays(method, settings):
+    scene, off = teapot_light(**settings)
     base = render(scene, off, size=SIZE)
     fast = render(scene, off.with_(penumbra=method), size=SIZE)
     for name in ("radiance", "shadow"):
@@ -120,6 +123,26 @@ def test_renders_are_reproducible_across_threads_orders_and_tiles():
     b = render(scene, opts.with_(threads=2, order="peano", tile_size=8), size=SIZE)
     assert np.array_equal(a.radiance, b.radiance, equal_nan=True)
     assert np.array_equal(a.shadow_rays, b.shadow_rays)
+
+
+def test_cone_meets_every_box_a_ray_into_the_light_meets():
+    rng = np.random.default_rng(3)
+    ray = np.zeros(RAY_LEN)
+    for _ in range(400):
+        o, c = rng.normal(size=3), rng.normal(size=3) * 3
+        half = rng.uniform(0, 0.5, 3)
+        lo = rng.normal(size=3) * 2
+        box = np.concatenate([lo, lo + rng.uniform(0, 1, 3)])
+        make_ray(ray, *o, *(c - o), 0.0, 0.0, 0.0)
+        meets = cone_meets(box, 0.0, 0.0, 0.0, ray, half, 1.0)[0]
+        for e in rng.uniform(-1, 1, (20, 3)) * half:
+            make_ray(ray, *o, *(c + e - o), 0.0, 0.0, 0.0)
+            ok, t_in, _ = slab(box, 0.0, 0.0, 0.0, ray)
+            assert not (ok and t_in < 1.0) or meets
+        make_ray(ray, *o, *(c - o), 0.0, 0.0, 0.0)
+        beyond = max(o[0], c[0] + half[0]) + 0.1  # every point of the cone has a smaller x
+        far = np.array([beyond, -9.0, -9.0, beyond + 1.0, 9.0, 9.0])
+        assert not cone_meets(far, 0.0, 0.0, 0.0, ray, half, 1.0)[0]
 
 
 def test_light_samples_are_stratified_seeded_and_on_the_light():

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .light_samples import points, sample_count, seeds
+from .light_samples import half_extent, points, sample_count, seeds
 from .origins import patch_ulps, robust_origins
 from .penumbra import LIT, PENUMBRA, UNCLASSIFIED, expanded_set, inside, scene_box
 from .ray_batch import BatchTracer, batch_rays
@@ -234,7 +234,9 @@ class Lighting:
             starts = np.repeat(o, count, axis=0)
             samples = batch_rays(starts, ends - starts, 0.0, 1.0, np.repeat(threshold[idx], count),
                                  self.slope * np.linalg.norm(ends - starts, axis=1))
-            lit[idx] = self.tracer.proven_lit(es.record, es.stack, es.grown, centre, samples, count)[0]
+            cone = self.opts.criterion != "adaptive" and self.opts.split == "length"
+            lit[idx] = self.tracer.proven_lit(es.record, es.stack, es.grown, centre, samples, count,
+                                              half_extent(self.lights[li]), cone)[0]
             with self._lock:
                 self.centre_rays += len(idx)
         return lit

@@ -19,6 +19,7 @@ from collections import namedtuple
 import numpy as np
 
 from .aggregate import WalkStack, make_bvh_walk
+from .cone_search import make_cone_search
 from .drivers import make_search
 from .jit import njit, specialise
 from .kernel_channels import Outputs, allocate
@@ -65,19 +66,34 @@ def make_batch_kernel(variant):
 # What the penumbra kernel's leaf visits read (passed where the walk passes the leaves through):
 # the scene's leaves and trims, the grown boxes (n_leaves, 6), the sample rays (m * S, RB_LEN) of
 # the m points (S = count), the point being tested (state[0]) and the walk (state[1]: 0 boxes
-# alone, 1 with the samples' searches; state[2] the grown boxes holding the origin met so far), and
-# the sample's ray and hit records.
-PenumbraContext = namedtuple("PenumbraContext", "leaves trims grown samples count state ray hit counts")
+# alone, 1 with the samples' searches; state[2] the grown boxes holding the origin met so far;
+# state[3] 1 where one cone search may stand for the samples' searches: cone_search.py), the
+# sample's ray and hit records, and the light's half extents (3,).
+PenumbraContext = namedtuple("PenumbraContext", "leaves trims grown samples count state ray hit counts half")
 
 
-MAX_NEAR = 8  # grown boxes holding a point's origin beyond which the point is sampled, not tested
+MAX_NEAR = 64  # leaves a point's walk may visit before it is sampled instead
+CONE_BOXES = 64  # a cone search's budget: this plus 8 boxes a sample
 
 
 def _penumbra_visit(p, ctx, trims, ray, hit, q, sl, trace):
-    """The centre ray of a point met leaf p's grown box. A box that does not hold the ray's origin
-    means "not proven lit". One that does (the point's own surface, and its neighbours) says
-    nothing by itself: the first walk (state[1] = 0) passes it by, the second lets the samples'
-    own patch searches of that leaf decide (any hit: not proven lit)."""
+    """The centre ray of a point met leaf p's grown box.
+
+    With a cone search (state[3] = 1) the leaf's surface itself is tested against the cone of the
+    point's shadow rays (cone_search.py, Lukaszewski 4.3: the expanded object by its own geometry):
+    a box reaching the criterion means "not proven lit", and so does a walk past MAX_NEAR leaves.
+    Without it, a grown box that does not hold the ray's origin means "not proven lit"; one that
+    does (the point's own surface, its neighbours) is passed by in the first walk (state[1] = 0)
+    and settled in the second by the samples' own searches of that leaf."""
+    ctx.state[2] += 1
+    if ctx.state[2] > MAX_NEAR:  # too many boxes on the way to the light: sample the point
+        hit[H_TIN] = ray[R_TMIN]
+        return 1
+    if CONE and ctx.state[3] == 1:  # noqa: F821
+        maybe, spent = cone(p, ctx.leaves, ctx.trims, ray, ctx.half, q, sl, CONE_BOXES + 8 * ctx.count)  # noqa: F821
+        if maybe:
+            hit[H_TIN] = ray[R_TMIN]
+        return spent
     g = ctx.grown
     holds = True
     for c in range(3):
@@ -87,9 +103,6 @@ def _penumbra_visit(p, ctx, trims, ray, hit, q, sl, trace):
         hit[H_TIN] = ray[R_TMIN]
         return 1
     if ctx.state[1] == 0:
-        ctx.state[2] += 1
-        if ctx.state[2] > MAX_NEAR:  # a light so large that many boxes hold the point: sample it
-            hit[H_TIN] = ray[R_TMIN]
         return 1
     first = ctx.state[0] * ctx.count
     spent = 0
@@ -112,7 +125,7 @@ def _trace_penumbra(rays, ctx, agg, q, lit, effort, trace, scratch):
         r = rays[i]
         ctx.state[0] = i
         effort[i] = 0
-        for second in range(2):
+        for second in range(1 if ctx.state[3] == 1 else 2):
             make_ray(rs.ray, r[0], r[1], r[2], r[3], r[4], r[5], r[RB_TMIN], r[RB_T0], r[RB_DT])
             rs.hit[H_TIN] = r[RB_TMAX]
             for k in range(COUNTER_LEN):
@@ -130,15 +143,16 @@ def make_penumbra_kernel(variant):
     """trace_penumbra(rays, ctx, agg, q, lit, effort, trace, scratch): per point, its centre ray
     (rays (m, RB_LEN), to the light's centre) through the BVH of grown boxes `agg`; lit[i] where
     no grown box but those holding the origin is met and no sample ray hits those (penumbra.py)."""
-    visit = njit(cache=True, nogil=True, _nrt=False)(specialise(_penumbra_visit,
-                                                                search=make_search(variant, True)))
+    cone = None if variant.rational else make_cone_search(variant)
+    visit = njit(cache=True, nogil=True, _nrt=False)(specialise(_penumbra_visit, search=make_search(variant, True),
+                                                                cone=cone, CONE=cone is not None))
     kernel = specialise(_trace_penumbra, walk=make_bvh_walk(visit, True))
     return njit(cache=True, nogil=True, _nrt=False)(kernel)
 
 
-def batch_variant(geom, opts, driver: str) -> Variant:
+def batch_variant(geom, opts, driver: str):
     """The kernel variant of secondary rays: the scene's, rays alone and without the surface cache
-    (its trees belong to the primary rays' thread units)."""
+    (its trees belong to the primary rays' thread units); render.trace_rays gives them the BVH."""
     return variant_for(geom, opts, driver=driver)._replace(bundle=False, cache=False)
 
 
@@ -185,16 +199,18 @@ class BatchTracer:
                                                self.scratch())
         return out
 
-    def proven_lit(self, record, stack: int, grown, centre_rays, samples, count: int):
+    def proven_lit(self, record, stack: int, grown, centre_rays, samples, count: int, half, cone: bool):
         """(lit (m,) bool, boxes (m,) int32): the penumbra kernel on m points' centre rays
-        (m, RB_LEN) with their sample rays (m * count, RB_LEN), over the BVH `record` of `grown`."""
+        (m, RB_LEN) with their sample rays (m * count, RB_LEN), over the BVH `record` of `grown`;
+        half: the light's half extents; cone: one cone search may stand for the samples'."""
         m = len(centre_rays)
         lit, effort = np.zeros(m, bool), np.zeros(m, np.int32)
         if m:
             inp = self.inputs
-            ctx = PenumbraContext(inp.scene[0], inp.scene[1], grown, samples, count, np.zeros(3, np.int64),
-                                  np.zeros(len(self.scratch().ray.ray)), np.zeros(len(self.scratch().ray.hit)),
-                                  np.zeros(COUNTER_LEN, np.int64))
+            ctx = PenumbraContext(inp.scene[0], inp.scene[1], grown, samples, count,
+                                  np.array([0, 0, 0, int(cone)], np.int64), np.zeros(len(self.scratch().ray.ray)),
+                                  np.zeros(len(self.scratch().ray.hit)), np.zeros(COUNTER_LEN, np.int64),
+                                  np.ascontiguousarray(half, np.float64))
             scratch = self.scratch()._replace(stack=WalkStack(np.zeros(stack, np.int32), np.zeros(stack)))
             args = (centre_rays, ctx, record, inp.query, lit, effort, self.trace, scratch)
             compiled("penumbra", batch_variant(self._geom, self._opts, "any"), args, self._on_compile)(*args)

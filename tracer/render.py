@@ -270,7 +270,9 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     if scene is not None:
         from .lighting import Lighting
         eye = view.eye if view is not None else origins[0, 0]
-        lighting = Lighting(scene, geom, opts, inputs, eye, on_compile)
+        # secondary rays go through the BVH whatever opts.accel: one set of batch kernels per scene
+        shared = inputs if opts.accel == "bvh" else kernel_inputs(geom, opts.with_(accel="bvh"), pixel_angle)
+        lighting = Lighting(scene, geom, opts.with_(accel="bvh"), shared, eye, on_compile)
         frame.add_lighting(opts.shadows)
 
     def work(unit):
