@@ -12,7 +12,8 @@ each sample weighted by its visibility: 0 where the sample lies behind the surfa
 without a ray where options.trivial_tests, Lischinski 6) or the shadow ray from the robust
 origin (origins.py) to it is occluded (ray_batch's any-hit kernel). Area lights first ask the
 fast penumbra test (penumbra.py) and skip the samples of points it proves lit. Neither test
-changes a bit of the image: they skip only rays whose answer is already known.
+changes a bit of the image: they skip only rays whose answer is already known. A scene without
+lights has a headlight at the eye, which casts no shadows (they would hide behind their casters).
 
 Materials: `reflect` is the mirror fraction, `transmit` the refracted one; the refracted part
 is split by Fresnel's reflectance (Schlick's approximation, total internal reflection included)
@@ -89,6 +90,8 @@ class Lighting:
         self.ior = np.array([m.ior for m in mats], np.float64)
         self.patch_material = np.asarray(scene.patch_material, np.int64)
         self.ulp = patch_ulps(geom)
+        # no lights: a headlight at the eye, which casts no shadows (they would hide behind their casters)
+        self.headlight = not scene.lights
         lights = list(scene.lights or []) or [Light("point", 1.0, np.ones(3), position=np.asarray(eye, np.float64))]
         total = sum(float(li.intensity) for li in lights)
         self.lights = lights
@@ -196,7 +199,7 @@ class Lighting:
         """(visible (m, S) bool, rays traced (m,), proven lit (m,) bool or None where not asked)."""
         m, count = lp.shape[:2]
         front = np.einsum("mk,msk->ms", v.normal, lp - v.pos[:, None]) > 0.0
-        if not self.opts.shadows or m == 0:
+        if not self.opts.shadows or self.headlight or m == 0:
             return front, np.zeros(m, np.int32), None
         origin = robust_origins(self.opts.origin, lo=v.lo, hi=v.hi, position=v.pos, normal=v.normal,
                                 ulp=self.ulp[v.patch], ulps=self.opts.origin_ulps, threshold=v.threshold,
@@ -230,11 +233,14 @@ class Lighting:
             count = lp.shape[1]
             o = origin[idx]
             centre = batch_rays(o, self.lights[li].centre() - o, 0.0, 1.0)
-            ends = lp[idx].reshape(-1, 3)
-            starts = np.repeat(o, count, axis=0)
-            samples = batch_rays(starts, ends - starts, 0.0, 1.0, np.repeat(threshold[idx], count),
-                                 self.slope * np.linalg.norm(ends - starts, axis=1))
             cone = self.opts.criterion != "adaptive" and self.opts.split == "length"
+            if cone:  # one cone search stands for the samples' (ray_batch._penumbra_visit)
+                samples = np.zeros((0, centre.shape[1]))
+            else:
+                ends = lp[idx].reshape(-1, 3)
+                starts = np.repeat(o, count, axis=0)
+                samples = batch_rays(starts, ends - starts, 0.0, 1.0, np.repeat(threshold[idx], count),
+                                     self.slope * np.linalg.norm(ends - starts, axis=1))
             lit[idx] = self.tracer.proven_lit(es.record, es.stack, es.grown, centre, samples, count,
                                               half_extent(self.lights[li]), cone)[0]
             with self._lock:

@@ -85,11 +85,12 @@ class Options(Record):
                             lo=0, hi=1 << 20, log=True, when={"origin": "box_corner"})
     origin_epsilon: float = _lit(1e-4, "fixed_epsilon: world units the origin is moved along the normal",
                                  lo=0.0, hi=1e6, when={"origin": "fixed_epsilon"})
-    penumbra: str = _lit("off", "fast penumbra (Lukaszewski): off traces every light sample; expanded first "
-                         "traces the point's ray to the light's centre through the patch boxes grown by the "
-                         "light (Lemma 3.1), and a point it proves lit traces no samples; tmax grows each box "
-                         "only by its own shrink factor (Lemma 4.2). The image is the same; off measures "
-                         "fastest on the sample scenes (README)", choices=PENUMBRAS)
+    penumbra: str = _lit("tmax", "fast penumbra (Lukaszewski): off traces every light sample; expanded first "
+                         "walks the point's ray to the light's centre through the patch boxes grown by the "
+                         "light (Lemma 3.1) and tests the surfaces in the grown boxes it meets against the "
+                         "cone of the shadow rays, and a point it proves lit traces no samples; tmax grows "
+                         "each box only by its own shrink factor (Lemma 4.2). The image is the same",
+                         choices=PENUMBRAS)
     trivial_tests: bool = _lit(True, "decide shadow rays without tracing where the surface faces away from the "
                                "light sample (Lischinski 6); the image is the same")
     mode: str = _opt("shaded", "what the image shows", choices=MODES, group="Display")

@@ -67,13 +67,15 @@ def make_batch_kernel(variant):
 # the scene's leaves and trims, the grown boxes (n_leaves, 6), the sample rays (m * S, RB_LEN) of
 # the m points (S = count), the point being tested (state[0]) and the walk (state[1]: 0 boxes
 # alone, 1 with the samples' searches; state[2] the grown boxes holding the origin met so far;
-# state[3] 1 where one cone search may stand for the samples' searches: cone_search.py), the
+# state[3] 1 where one cone search may stand for the samples' searches: cone_search.py; state[4]
+# the boxes the point's cone searches have computed), the
 # sample's ray and hit records, and the light's half extents (3,).
 PenumbraContext = namedtuple("PenumbraContext", "leaves trims grown samples count state ray hit counts half")
 
 
 MAX_NEAR = 64  # leaves a point's walk may visit before it is sampled instead
-CONE_BOXES = 64  # a cone search's budget: this plus 8 boxes a sample
+CONE_BOXES = 256  # the boxes a point's cone searches may compute in all (a cone that meets a surface
+# explores the whole patch of surface it meets: such points are cheaper sampled)
 
 
 def _penumbra_visit(p, ctx, trims, ray, hit, q, sl, trace):
@@ -90,7 +92,8 @@ def _penumbra_visit(p, ctx, trims, ray, hit, q, sl, trace):
         hit[H_TIN] = ray[R_TMIN]
         return 1
     if CONE and ctx.state[3] == 1:  # noqa: F821
-        maybe, spent = cone(p, ctx.leaves, ctx.trims, ray, ctx.half, q, sl, CONE_BOXES + 8 * ctx.count)  # noqa: F821
+        maybe, spent = cone(p, ctx.leaves, ctx.trims, ray, ctx.half, q, sl, CONE_BOXES - ctx.state[4])  # noqa: F821
+        ctx.state[4] += spent
         if maybe:
             hit[H_TIN] = ray[R_TMIN]
         return spent
@@ -132,6 +135,7 @@ def _trace_penumbra(rays, ctx, agg, q, lit, effort, trace, scratch):
                 rs.counts[k] = 0
             ctx.state[1] = second
             ctx.state[2] = 0
+            ctx.state[4] = 0
             walk(agg, ctx, ctx.trims, rs.ray, rs.hit, q, sl, stack, trace, rs.counts)  # noqa: F821
             effort[i] += rs.counts[C_EFFORT]
             lit[i] = rs.hit[H_TIN] >= r[RB_TMAX]
@@ -208,7 +212,7 @@ class BatchTracer:
         if m:
             inp = self.inputs
             ctx = PenumbraContext(inp.scene[0], inp.scene[1], grown, samples, count,
-                                  np.array([0, 0, 0, int(cone)], np.int64), np.zeros(len(self.scratch().ray.ray)),
+                                  np.array([0, 0, 0, int(cone), 0], np.int64), np.zeros(len(self.scratch().ray.ray)),
                                   np.zeros(len(self.scratch().ray.hit)), np.zeros(COUNTER_LEN, np.int64),
                                   np.ascontiguousarray(half, np.float64))
             scratch = self.scratch()._replace(stack=WalkStack(np.zeros(stack, np.int32), np.zeros(stack)))
