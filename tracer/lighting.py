@@ -106,6 +106,10 @@ class Lighting:
         self.seconds = dict.fromkeys(PHASES, 0.0)
         self.centre_rays = 0
         self._lock = threading.Lock()
+        # recorder(kind, **rays) sees every batch of secondary rays (the pixel inspector's ray tree):
+        # kind 'shadow' (pix, code, light, origin, target, occluded), 'proven_lit' (pix, code, light,
+        # origin, lit), 'secondary' (pix, code, origin, direction, hit: kernel channels of the hits)
+        self.recorder = None
 
     def _clock(self, phase, start):
         with self._lock:
@@ -210,6 +214,8 @@ class Lighting:
             start = time.perf_counter()
             lit = self._proven_lit(origin, li, v.threshold, need.any(axis=1), lp)
             need = need & ~lit[:, None]
+            if self.recorder is not None:
+                self.recorder("proven_lit", pix=v.pix, code=v.code, light=li, origin=origin, lit=lit)
             self._clock("penumbra_tests", start)
         start = time.perf_counter()
         rows, cols = np.nonzero(need)
@@ -220,6 +226,9 @@ class Lighting:
             rays = batch_rays(o, lp[rows, cols] - o, 0.0, 1.0, v.threshold[rows], dt)
             occluded[rows, cols] = self.tracer.occluded(rays)[0]
         self._clock("shadow_rays", start)
+        if self.recorder is not None:
+            self.recorder("shadow", pix=v.pix[rows], code=v.code[rows], light=li, origin=origin[rows],
+                          target=lp[rows, cols], occluded=occluded[rows, cols])
         return front & ~occluded, need.sum(axis=1).astype(np.int32), lit
 
     def _proven_lit(self, origin, li, threshold, asked, lp):
@@ -277,6 +286,8 @@ class Lighting:
                                 epsilon=self.opts.origin_epsilon)
         out = self.tracer.closest(batch_rays(origin, d, 0.0, np.inf, v.threshold[src], self.slope))
         hit = out.hit[0]
+        if self.recorder is not None:
+            self.recorder("secondary", pix=v.pix[src], code=code, origin=origin, direction=d, hit=out)
         miss = ~hit
         np.add.at(radiance, v.pix[src[miss]], weight[miss] * environment(d[miss]))
         self._clock("secondary_rays", start)
