@@ -199,3 +199,66 @@ def test_lighting_options_and_materials_are_checked():
     assert scene.lights[0].samples == 3
     frame = render(scene, Options(shadows=False), size=(8, 8))
     assert frame.shadow is None and frame.penumbra is None and frame.radiance is not None
+
+
+def room_faces(half=6.0):
+    """The six faces of a cube [-half, half]^3, each as 2 x 2 bilinear patches (seams to leak through)."""
+    out = []
+    for axis in range(3):
+        for side in (-half, half):
+            for a0, a1 in ((-half, 0.0), (0.0, half)):
+                for b0, b1 in ((-half, 0.0), (0.0, half)):
+                    pts = []
+                    for b in (b0, b1):
+                        for a in (a0, a1):
+                            p = [0.0, 0.0, 0.0]
+                            p[axis], p[(axis + 1) % 3], p[(axis + 2) % 3] = side, a, b
+                            pts.append(p)
+                    out.append({"degree": [1, 1], "points": pts})
+    return out
+
+
+def test_adaptive_reflections_of_a_curved_mirror_have_no_cracks():
+    data = {"objects": [{"file": S.TEAPOT_BPT, "material": "mirror"}, {"patches": room_faces(), "material": "wall"}],
+            "materials": {"mirror": {"color": [0.2, 0.2, 0.2], "reflect": 1.0}, "wall": {"color": [0.7, 0.6, 0.5]}},
+            "lights": [{"type": "point", "position": [2, -2, 5]}],
+            "camera": {"eye": [4, -5, 3], "look_at": [0, 0, 1.5], "up": [0, 0, 1], "fov_deg": 40}}
+    scene = S.load(data)
+    opts = Options(criterion="adaptive", pixel_fraction=2.0, shadows=False, max_depth=1)
+    hits, effort = secondary_rays(scene, opts)
+    assert len(hits) > 300 and hits.all(), f"{(~hits).sum()} reflected rays leaked out of a closed room"
+    flat_hits, flat_effort = secondary_rays(scene, opts, curvature=False)
+    assert flat_hits.all() and effort.sum() < 0.95 * flat_effort.sum()  # the spread beam stops earlier
+
+
+def secondary_rays(scene, opts, curvature=True):
+    """(hit, boxes) of every reflected or refracted ray of a render (lighting's recorder); without
+    `curvature`, secondary rays keep their parent's threshold growth alone."""
+    import tracer.lighting as lighting
+    seen = []
+    original_init, original_kappa = lighting.Lighting.__init__, lighting.max_curvature
+
+    def recording(self, *args, **kwargs):
+        original_init(self, *args, **kwargs)
+        self.recorder = lambda kind, **r: seen.append((r["hit"].hit[0], r["hit"].effort[0])) \
+            if kind == "secondary" else None
+    lighting.Lighting.__init__ = recording
+    if not curvature:
+        lighting.max_curvature = lambda scene, patches, uv: np.zeros(len(patches))
+    try:
+        render(scene, opts, size=SIZE)
+    finally:
+        lighting.Lighting.__init__, lighting.max_curvature = original_init, original_kappa
+    return np.concatenate([h for h, _ in seen]), np.concatenate([e for _, e in seen])
+
+
+def test_curvature_of_sphere_and_plane():
+    from tracer.curvature import max_curvature
+    r = 2.0
+    k = 0.5522847498 * r  # a quarter circle as a cubic, near enough: curvature within 1 %
+    arc = np.array([[r, 0.0], [r, k], [k, r], [0.0, r]])
+    cyl = [[arc[i, 0], arc[i, 1], z] for z in (0.0, 1.0) for i in range(4)]
+    scene = S.load({"objects": [{"patches": [{"degree": [3, 1], "points": cyl}, quad(0, 1, 0, 1, 0)]}]})
+    uv = np.array([[0.3, 0.5], [0.5, 0.5], [0.5, 0.5]])
+    got = max_curvature(scene, np.array([0, 0, 1]), uv)
+    assert abs(got[0] - 1 / r) < 1e-2 / r and abs(got[1] - 1 / r) < 1e-2 / r and got[2] == 0.0

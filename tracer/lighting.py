@@ -22,7 +22,9 @@ surface's own Lambert + Phong colour. Patches have no consistent orientation, so
 tracks whether it is inside a refracting body by counting the refractions along it.
 
 Threshold of detail (adaptive criterion): a secondary ray starts with the threshold its parent
-had at the hit, T0' = T0 + dT * t, and keeps the parent's growth per unit length (Lempitsky 3.6).
+had at the hit, T0' = T0 + dT * t, and keeps the parent's growth per unit length (Lempitsky 3.6);
+a reflected or refracted one grows faster by 2 k T0', k the surface's largest curvature at the
+hit (curvature.py), as a curved mirror spreads the beam: reflections of distant detail stop early.
 """
 from __future__ import annotations
 
@@ -32,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .curvature import max_curvature, patch_parameters
 from .light_samples import half_extent, points, sample_count, seeds
 from .origins import patch_ulps, robust_origins
 from .penumbra import LIT, PENUMBRA, UNCLASSIFIED, expanded_set, inside, scene_box
@@ -47,7 +50,8 @@ class Vertices:
     """m hits of one level of the ray trees of a unit: the unit's pixel index, the path code (1
     primary; 2c reflected, 2c + 1 refracted from c), the weight of their radiance, the hit box
     and its centre, the unit normal facing the incoming ray, the incoming unit direction, the
-    patch, the threshold of detail there, and whether the path is inside a refracting body."""
+    patch and the (surface's) parameters of the hit, the threshold of detail there and its growth
+    per unit length along the rays leaving it, and whether the path is inside a refracting body."""
 
     pix: np.ndarray
     code: np.ndarray
@@ -58,7 +62,9 @@ class Vertices:
     normal: np.ndarray
     d: np.ndarray
     patch: np.ndarray
+    uv: np.ndarray
     threshold: np.ndarray
+    grow: np.ndarray
     inside: np.ndarray
 
     def take(self, keep) -> "Vertices":
@@ -79,7 +85,7 @@ class Lighting:
     """What shading a frame's units needs, built once per frame (render.trace_rays)."""
 
     def __init__(self, scene, geom, opts, inputs, eye, on_compile=None):
-        self.opts = opts
+        self.opts, self.scene, self.geom = opts, scene, geom
         self.tracer = BatchTracer(geom, opts, inputs, on_compile)
         self.slope = float(inputs.sizes[0])  # threshold of detail per unit distance (adaptive)
         mats = scene.materials
@@ -152,7 +158,8 @@ class Lighting:
         m = len(ys)
         return Vertices(np.arange(m), np.ones(m, np.int64), np.ones((m, 3)), frame.box_min[ys, xs],
                         frame.box_max[ys, xs], frame.position[ys, xs], facing(frame.normal[ys, xs], d), d,
-                        frame.patch[ys, xs], self.slope * dist, np.zeros(m, bool))
+                        frame.patch[ys, xs], frame.uv[ys, xs], self.slope * dist, np.full(m, self.slope),
+                        np.zeros(m, bool))
 
     def _split(self, v: Vertices):
         """Per vertex: the surface's own share, the reflected and the refracted weights, and the
@@ -212,7 +219,7 @@ class Lighting:
         lit = None
         if self.sets[li] is not None:
             start = time.perf_counter()
-            lit = self._proven_lit(origin, li, v.threshold, need.any(axis=1), lp)
+            lit = self._proven_lit(origin, li, v.threshold, v.grow, need.any(axis=1), lp)
             need = need & ~lit[:, None]
             if self.recorder is not None:
                 self.recorder("proven_lit", pix=v.pix, code=v.code, light=li, origin=origin, lit=lit)
@@ -222,7 +229,7 @@ class Lighting:
         occluded = np.zeros((m, count), bool)
         if len(rows):
             o = origin[rows]
-            dt = self.slope * np.linalg.norm(lp[rows, cols] - o, axis=1)
+            dt = v.grow[rows] * np.linalg.norm(lp[rows, cols] - o, axis=1)
             rays = batch_rays(o, lp[rows, cols] - o, 0.0, 1.0, v.threshold[rows], dt)
             occluded[rows, cols] = self.tracer.occluded(rays)[0]
         self._clock("shadow_rays", start)
@@ -231,7 +238,7 @@ class Lighting:
                           target=lp[rows, cols], occluded=occluded[rows, cols])
         return front & ~occluded, need.sum(axis=1).astype(np.int32), lit
 
-    def _proven_lit(self, origin, li, threshold, asked, lp):
+    def _proven_lit(self, origin, li, threshold, grow, asked, lp):
         """(m,) bool: Lemma 3.1 / 4.2 (penumbra.py) prove every sample ray from these origins to
         the sample points lp (m, S, 3) unoccluded."""
         lit = np.zeros(len(origin), bool)
@@ -249,7 +256,7 @@ class Lighting:
                 ends = lp[idx].reshape(-1, 3)
                 starts = np.repeat(o, count, axis=0)
                 samples = batch_rays(starts, ends - starts, 0.0, 1.0, np.repeat(threshold[idx], count),
-                                     self.slope * np.linalg.norm(ends - starts, axis=1))
+                                     np.repeat(grow[idx], count) * np.linalg.norm(ends - starts, axis=1))
             lit[idx] = self.tracer.proven_lit(es.record, es.stack, es.grown, centre, samples, count,
                                               half_extent(self.lights[li]), cone)[0]
             with self._lock:
@@ -284,7 +291,11 @@ class Lighting:
         origin = robust_origins(self.opts.origin, lo=v.lo[src], hi=v.hi[src], position=v.pos[src], normal=side,
                                 ulp=self.ulp[v.patch[src]], ulps=self.opts.origin_ulps, threshold=v.threshold[src],
                                 epsilon=self.opts.origin_epsilon)
-        out = self.tracer.closest(batch_rays(origin, d, 0.0, np.inf, v.threshold[src], self.slope))
+        grow = v.grow[src]
+        if self.slope > 0.0:  # adaptive: a curved mirror spreads the beam (curvature.py)
+            kappa = max_curvature(self.scene, v.patch[src], patch_parameters(self.geom, v.patch[src], v.uv[src]))
+            grow = grow + 2.0 * kappa * v.threshold[src]
+        out = self.tracer.closest(batch_rays(origin, d, 0.0, np.inf, v.threshold[src], grow))
         hit = out.hit[0]
         if self.recorder is not None:
             self.recorder("secondary", pix=v.pix[src], code=code, origin=origin, direction=d, hit=out)
@@ -294,7 +305,7 @@ class Lighting:
         t = out.t[0, hit]
         return Vertices(v.pix[src[hit]], code[hit], weight[hit], out.box_min[0, hit], out.box_max[0, hit],
                         out.position[0, hit], facing(out.normal[0, hit], d[hit]), d[hit], out.patch[0, hit],
-                        v.threshold[src[hit]] + self.slope * t, inside_now[hit])
+                        out.uv[0, hit], v.threshold[src[hit]] + grow[hit] * t, grow[hit], inside_now[hit])
 
     def report(self) -> dict:
         """Time per phase (summed over threads), centre rays of the penumbra tests, build figures."""
