@@ -262,3 +262,13 @@ def test_curvature_of_sphere_and_plane():
     uv = np.array([[0.3, 0.5], [0.5, 0.5], [0.5, 0.5]])
     got = max_curvature(scene, np.array([0, 0, 1]), uv)
     assert abs(got[0] - 1 / r) < 1e-2 / r and abs(got[1] - 1 / r) < 1e-2 / r and got[2] == 0.0
+
+
+def test_schlick_fresnel_and_total_internal_reflection():
+    from tracer.lighting import schlick
+    eta = np.array([1 / 1.5, 1 / 1.5, 1.5, 1.5, 1.0])
+    cos_i = np.array([1.0, 0.0, 1.0, 0.5, 1.0])
+    f = schlick(cos_i, eta)
+    assert f[0] == pytest.approx(0.04) and f[1] == pytest.approx(1.0) and f[2] == pytest.approx(0.04)
+    assert f[3] == 1.0  # from glass at 60 degrees: past the critical angle (41.8 degrees)
+    assert f[4] == 0.0  # no change of index, straight on: nothing reflected

@@ -167,10 +167,7 @@ class Lighting:
         mat = self.patch_material[v.patch]
         reflect, transmit, ior = self.reflect[mat], self.transmit[mat], self.ior[mat]
         eta = np.where(v.inside, ior, 1.0 / ior)
-        cos_i = np.clip(-np.sum(v.d * v.normal, axis=1), 0.0, 1.0)
-        sin2_t = eta * eta * (1.0 - cos_i * cos_i)
-        r0 = ((1.0 - eta) / (1.0 + eta)) ** 2
-        fresnel = np.where(sin2_t >= 1.0, 1.0, r0 + (1.0 - r0) * (1.0 - cos_i) ** 5)
+        fresnel = schlick(np.clip(-np.sum(v.d * v.normal, axis=1), 0.0, 1.0), eta)
         return 1.0 - reflect - transmit, reflect + transmit * fresnel, transmit * (1.0 - fresnel), eta
 
     # ---- direct light ---------------------------------------------------------------
@@ -311,6 +308,14 @@ class Lighting:
         """Time per phase (summed over threads), centre rays of the penumbra tests, build figures."""
         return {"seconds": {k: round(s, 4) for k, s in self.seconds.items()}, "centre_rays": self.centre_rays,
                 "expanded_sets": [s.report for s in self.sets if s is not None]}
+
+
+def schlick(cos_i: np.ndarray, eta: np.ndarray) -> np.ndarray:
+    """Fresnel reflectance by Schlick's approximation for light arriving at cos_i to the normal from
+    a medium of relative index 1 / eta (eta = n_from / n_to); 1 under total internal reflection."""
+    sin2_t = eta * eta * (1.0 - cos_i * cos_i)
+    r0 = ((1.0 - eta) / (1.0 + eta)) ** 2
+    return np.where(sin2_t >= 1.0, 1.0, r0 + (1.0 - r0) * (1.0 - cos_i) ** 5)
 
 
 def environment(d: np.ndarray) -> np.ndarray:
