@@ -5,10 +5,14 @@ trimmed samples and the impeller at every criterion x split x precision. A chang
 meant to move results regenerates the store on purpose (`python tests/digests.py --write`).
 """
 import json
+import os
+import subprocess
+import sys
 
 import pytest
 
 import digests as D
+import scenes as S
 
 STORED = json.loads(D.STORE.read_text())
 
@@ -39,3 +43,30 @@ def test_one_variant_bit_identical(name, key):
     got = D.variant_digests(name, opts)
     moved = [channel for channel, digest in STORED[name][key].items() if got[channel] != digest]
     assert not moved, f"{name} {key}: channels moved: {', '.join(moved)}"
+
+
+BLAS_CORES = ("Haswell", "SkylakeX")  # OpenBLAS kernels of different widths (the AVX2 and AVX-512 ones)
+DIGEST_ONE = """
+import json, sys
+sys.path.insert(0, "tests")
+import digests as D
+from tracer.options import Options
+print(json.dumps(D.variant_digests(sys.argv[1], Options(criterion="float", precision="f64"))))
+"""
+
+
+@pytest.mark.parametrize("name", ["stress/bottom apex", "impeller"])
+def test_digests_do_not_depend_on_the_blas_kernels(name):
+    """The same bits whichever kernels OpenBLAS picks for this CPU (tracer/fixed_order.py); a
+    kernel this CPU lacks falls back to an older one, which is a check all the same."""
+    if D._scene(name)[0] is None:
+        pytest.skip(f"{name}: not available on this machine")
+    outs = []
+    for core in BLAS_CORES:
+        env = {**os.environ, "OPENBLAS_CORETYPE": core}
+        proc = subprocess.run([sys.executable, "-c", DIGEST_ONE, name], cwd=S.REPO, env=env, capture_output=True,
+                              text=True, timeout=900)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        outs.append(json.loads(proc.stdout.splitlines()[-1]))
+    assert outs[0] == outs[1]
+    assert outs[0] == STORED[name]["float/length/f64"]

@@ -125,7 +125,8 @@ def test_sample_scene():
     assert s.patch_material.tolist() == [0] * 32 + [1]
     assert s.patch_line[0] == 2 and s.patch_line[-1] == -1
     assert s.image_size == (512, 512) and s.camera.fov_deg == 35
-    assert [l.type for l in s.lights] == ["point", "sphere"]
+    assert [(l.type, l.radius, l.samples) for l in s.lights] == [("sphere", 0.5, 16)]
+    assert [(m.reflect, m.transmit, m.ior) for m in s.materials] == [(0.1, 0.0, 1.5), (0.15, 0.0, 1.5)]
     lo, hi = s.bounds()
     assert lo[2] == 0 and hi[2] == pytest.approx(3.15)  # teapot stands on the floor at z = 0
 

@@ -54,3 +54,25 @@ def test_no_tracer_source_imports_the_viewer():
              for path in sources for line, name in imported_names(ast.parse(path.read_text(), str(path)))
              if name == "viewer" or name.startswith("viewer.")]
     assert not found, "; ".join(found)
+
+
+BLAS_CALLS = {"dot", "matmul", "inner", "tensordot", "vdot"}
+
+
+def test_no_blas_products_outside_fixed_order():
+    """numpy's @ and dot go to OpenBLAS, whose kernels (chosen by the CPU) add in their own order:
+    geometry would differ in its last bits between machines. tracer/fixed_order.py adds term by term."""
+    found = []
+    for path in sorted(TRACER.rglob("*.py")):
+        if path.name == "fixed_order.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.BinOp) and isinstance(node.op, ast.MatMult):
+                found.append(f"{path.relative_to(REPO)}:{node.lineno} @")
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and \
+                    node.func.attr in BLAS_CALLS and isinstance(node.func.value, ast.Name) and node.func.value.id == "np":
+                found.append(f"{path.relative_to(REPO)}:{node.lineno} np.{node.func.attr}")
+            if isinstance(node, ast.Call) and ast.unparse(node.func) == "np.linalg.norm" and \
+                    not any(k.arg == "axis" for k in node.keywords):  # a vector's norm is a BLAS dot
+                found.append(f"{path.relative_to(REPO)}:{node.lineno} np.linalg.norm of a vector")
+    assert not found, "use tracer.fixed_order instead of: " + ", ".join(found)

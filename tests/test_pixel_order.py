@@ -200,6 +200,8 @@ def scanline_frame(teapot):
 
 
 def identical(a, b) -> bool:
+    if a is None or b is None:  # a channel the frame did not compute (the reference has no lighting)
+        return a is b
     return a.dtype == b.dtype and np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
 
 

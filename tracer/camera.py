@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .fixed_order import norm
 from .geometry import PRECISION_DTYPE
 
 
@@ -22,13 +23,13 @@ class View:
         """Unit forward, right and up vectors (right-handed, image rows run down)."""
         eye = np.asarray(self.eye, float)
         forward = np.asarray(self.look_at, float) - eye
-        if not np.linalg.norm(forward) > 0:
+        if not norm(forward) > 0:
             raise ValueError("camera: eye and look_at coincide")
-        forward /= np.linalg.norm(forward)
+        forward /= norm(forward)
         right = np.cross(forward, np.asarray(self.up, float))
-        if not np.linalg.norm(right) > 1e-12:
+        if not norm(right) > 1e-12:
             raise ValueError("camera: up is parallel to the viewing direction")
-        right /= np.linalg.norm(right)
+        right /= norm(right)
         up = np.cross(right, forward)
         return forward, right, up
 
@@ -50,11 +51,11 @@ def framing_view(lo, hi, fov_deg: float = 35.0, direction=(0.55, -0.8, 0.45), up
     """A view of the box [lo, hi] that fits its bounding sphere in the field of view."""
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     centre = 0.5 * (lo + hi)
-    radius = 0.5 * float(np.linalg.norm(hi - lo))
+    radius = 0.5 * norm(hi - lo)
     radius = radius if radius > 0 else 1e-9  # a point; a floor for small scenes would lose them (limits.py)
     distance = radius / math.sin(math.radians(fov_deg) / 2.0)
     d = np.asarray(direction, float)
-    eye = centre + d / np.linalg.norm(d) * distance
+    eye = centre + d / norm(d) * distance
     return View(tuple(eye), tuple(centre), tuple(up), fov_deg)
 
 

@@ -25,7 +25,11 @@ def _bernstein(deg: int, t: np.ndarray) -> np.ndarray:
 def _points(grids: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """(k, 3) surface points of homogeneous grids (k, m + 1, n + 1, 4) at (u, v)."""
     m, n = grids.shape[1] - 1, grids.shape[2] - 1
-    h = np.einsum("ki,kijc,kj->kc", _bernstein(m, u), grids, _bernstein(n, v))
+    bu, bv = _bernstein(m, u), _bernstein(n, v)
+    h = 0.0
+    for i in range(m + 1):  # term by term (fixed_order.py): the same bits on every machine
+        for j in range(n + 1):
+            h = h + (bu[:, i] * bv[:, j])[:, None] * grids[:, i, j]
     return h[:, :3] / h[:, 3:]
 
 

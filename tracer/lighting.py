@@ -206,7 +206,7 @@ class Lighting:
     def _visibility(self, v: Vertices, lp, li, pixel_ids):
         """(visible (m, S) bool, rays traced (m,), proven lit (m,) bool or None where not asked)."""
         m, count = lp.shape[:2]
-        front = np.einsum("mk,msk->ms", v.normal, lp - v.pos[:, None]) > 0.0
+        front = np.sum(v.normal[:, None, :] * (lp - v.pos[:, None]), axis=2) > 0.0
         if not self.opts.shadows or self.headlight or m == 0:
             return front, np.zeros(m, np.int32), None
         origin = robust_origins(self.opts.origin, lo=v.lo, hi=v.hi, position=v.pos, normal=v.normal,

@@ -23,6 +23,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from tracer.fixed_order import dot, norm, sandwich
+
 MAX_DEGREE = 20
 
 
@@ -260,9 +262,9 @@ class NurbsCurve:
         T, starts, spans = decomposition(self.knots, self.degree, *self.domain)
         p = self.degree
         if self.rational:
-            refined = euclidean(T @ homogeneous(self.points))
+            refined = euclidean(dot(T, homogeneous(self.points)))
         else:  # keep w == 1 exactly for integral curves
-            refined = np.column_stack([T @ self.points[:, :-1], np.ones(len(T))])
+            refined = np.column_stack([dot(T, self.points[:, :-1]), np.ones(len(T))])
         return [(refined[a:a + p + 1].copy(), span) for a, span in zip(starts, spans)]
 
 
@@ -340,9 +342,9 @@ class NurbsSurface:
         Tv, sv, spv = decomposition(self.knots_v, q, v0, v1)
         rational = self.rational
         if rational:
-            net = euclidean(np.einsum("aj,jic,bi->abc", Tv, homogeneous(self.points), Tu))
+            net = euclidean(sandwich(Tv, homogeneous(self.points), Tu))
         else:  # integral: refine x y z only so that w stays exactly 1
-            xyz = np.einsum("aj,jic,bi->abc", Tv, self.points[..., :3], Tu)
+            xyz = sandwich(Tv, self.points[..., :3], Tu)
             net = np.concatenate([xyz, np.ones(xyz.shape[:2] + (1,))], axis=2)
         pts, doms, rat = [], [], []
         for a, (va, vb) in zip(sv, spv):
@@ -464,14 +466,14 @@ def revolve(generatrix: NurbsCurve, origin, axis, a0: float, a1: float) -> tuple
     parameterisation of the returned CircleParam (exact angle only at knots).
     """
     d = np.asarray(axis, dtype=np.float64)
-    if not np.linalg.norm(d) > 0:
+    if not norm(d) > 0:
         raise NurbsError("axis of revolution has zero length")
-    d = d / np.linalg.norm(d)
+    d = d / norm(d)
     o = np.asarray(origin, dtype=np.float64)
     circ = CircleParam.for_sweep(a0, a1)
     gp = generatrix.points
     cp = gp[:, :3] - o
-    centre = o + np.outer(cp @ d, d)               # foot of each point on the axis
+    centre = o + np.outer(dot(cp, d), d)            # foot of each point on the axis
     x = gp[:, :3] - centre                          # radial vector (zero on the axis)
     y = np.cross(d, x)
     dirs = circ.directions()                        # (2n+1, 2) multipliers of x and y

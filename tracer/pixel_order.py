@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from .fixed_order import dot
 from .options import ORDERS
 
 ITEM_CELLS = 64         # item buffer entries per image edge (the paper's 64 x 64)
@@ -151,7 +152,7 @@ def item_buffer(boxes: np.ndarray, view, width: int, height: int, cells: int = I
     boxes = np.asarray(boxes, np.float64).reshape(-1, 6)
     corner = np.array([[(k >> a) & 1 for a in range(3)] for k in range(8)], bool)
     corners = np.where(corner[None], boxes[:, None, 3:], boxes[:, None, :3]) - np.asarray(view.eye, float)
-    z, across, upward = corners @ forward, corners @ right, corners @ up
+    z, across, upward = dot(corners, forward), dot(corners, right), dot(corners, up)
     near, far = z.min(axis=1), z.max(axis=1)
     seen = np.isfinite(boxes).all(axis=1) & (far > 0)
     behind = near <= 0

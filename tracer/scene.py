@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tracer.errors import SceneError
+from tracer.fixed_order import affine
 from tracer.formats.source import check_file, quote, read_text, shown
 from tracer.formats.bpt import MAX_DEGREE, PatchArrays, PatchData, load_bpt_arrays
 from tracer.formats.losses import has_losses, summary_line
@@ -282,10 +283,9 @@ def _assemble(label, objs, materials, lights, camera, image) -> Scene:
                                                                   - len(o.model.surfaces)))
             pdom.append(np.concatenate(o.patch_domain))
             reports[o.source] = o.model.report
-        lin, shift = o.transform[:3, :3], o.transform[:3, 3]
         p = o.patches
         with np.errstate(over="ignore", invalid="ignore"):
-            xyz = p.points[:, :3] @ lin.T + shift  # transform the Euclidean points, keep w
+            xyz = affine(p.points[:, :3], o.transform)  # the Euclidean points, keep w
         if not np.all(np.isfinite(xyz)):
             raise SceneError(f"the transform takes control points past float64's largest number, "
                              f"{np.finfo(np.float64).max:.3g}", key=f"objects[{oi}].transform")

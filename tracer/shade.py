@@ -20,6 +20,7 @@ import numpy as np
 from PIL import Image
 
 from .colormap import colorize, to_uint8
+from .fixed_order import norm
 
 MODES = ("shaded", "normal", "uv", "depth", "patch")
 AMBIENT = 0.06
@@ -109,7 +110,7 @@ def depth_limits(frame, scene=None, rect=None):
     if rect is not None and scene is not None:
         eye = frame.ray_origin[0, 0]
         lo, hi = scene.bounds()
-        near = float(np.linalg.norm(np.maximum(np.maximum(lo - eye, 0.0), eye - hi)))
+        near = norm(np.maximum(np.maximum(lo - eye, 0.0), eye - hi))
         corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
         far = float(np.max(np.linalg.norm(corners - eye, axis=1)))
         return near, max(far, near * (1 + 1e-9) + 1e-12)

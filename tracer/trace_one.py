@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .camera import View, primary_rays, view_of
+from .fixed_order import dot
 from .geometry import Geometry, prepare
 from .options import Options
 from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN, make_ray
@@ -91,7 +92,7 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
     trace = new_trace(capacity)
     o = np.asarray(origin, np.float64)
     d = np.asarray(direction, np.float64)
-    length = math.sqrt(float(d @ d))
+    length = math.sqrt(float(dot(d, d)))
     ray = np.zeros(RAY_LEN)
     hit = np.zeros(HIT_LEN)
     counts = np.zeros(COUNTER_LEN, np.int64)
@@ -114,7 +115,7 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
         pts = np.zeros((4, max_points))
         hit_normal(hit, ctrl, pstart, deg_u, deg_v, rational, ray, pts, np.zeros((4, max_points)),
                    np.zeros((6, 4)), normal)
-        t = min(max(float((centre - o) @ d) / (length * length), hit[H_TIN]), hit[H_TOUT])
+        t = min(max(float(dot(centre - o, d)) / (length * length), hit[H_TIN]), hit[H_TOUT])
     uv = np.array([hit[H_U], hit[H_V]])
     if found:  # in the parameters of the patch's surface (NURBS), as the renderer reports them
         dom = geom.leaf_domain[int(hit[H_PATCH])]

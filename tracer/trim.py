@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tracer.fixed_order import dot
 from tracer.nurbs import NurbsCurve, homogeneous, split_bezier
 
 KINDS = {"trim": 1, "hole": -1}
@@ -68,11 +69,11 @@ def evaluate_segment(seg: np.ndarray, t, derivative: bool = False):
     """Points (len(t), 2) of a rational Bezier segment (u, v, w rows); with derivative, also d/dt."""
     h = homogeneous(seg)
     n = len(h) - 1
-    p = bernstein(n, t) @ h
+    p = dot(bernstein(n, t), h)
     xy = p[:, :2] / p[:, 2:3]
     if not derivative:
         return xy
-    d = n * bernstein(n - 1, t) @ np.diff(h, axis=0)
+    d = n * dot(bernstein(n - 1, t), np.diff(h, axis=0))
     return xy, (d[:, :2] - xy * d[:, 2:3]) / p[:, 2:3]
 
 

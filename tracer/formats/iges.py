@@ -36,6 +36,7 @@ from collections import Counter, defaultdict
 import numpy as np
 
 from tracer.errors import SceneError
+from tracer.fixed_order import affine, matmul4
 from tracer.formats.iges_sections import read_iges
 from tracer.formats.losses import group_losses
 from tracer.nurbs import (CircleParam, FreeformModel, FreeformSurface, NurbsCurve, NurbsError,
@@ -122,7 +123,7 @@ class _Converter:
         if not ptr or depth > 32:
             return np.eye(4)
         t = self.ent(ptr, (124,))
-        return self.matrix(t, depth + 1) @ t.to_affine()
+        return matmul4(self.matrix(t, depth + 1), t.to_affine())
 
     # ---- curves --------------------------------------------------------------------
 
@@ -142,7 +143,7 @@ class _Converter:
         else:
             raise _Unconvertible(f"generatrix of type {t} is not supported (110, 126, 100 are)")
         pts = curve.points.copy()
-        pts[:, :3] = pts[:, :3] @ m[:3, :3].T + m[:3, 3]
+        pts[:, :3] = affine(pts[:, :3], m)
         return NurbsCurve(curve.degree, curve.knots, pts, curve.domain), circ
 
     def _bspline_curve(self, e, dim) -> NurbsCurve:
@@ -171,7 +172,7 @@ class _Converter:
         """Bezier segments (k, 4) x y z w of a 126, 110, 100 or a 102 of them, transforms applied."""
         e = self.ent(seq)
         t = e.d["entity_type_number"]
-        m = self.matrix(e) if parent is None else parent @ self.matrix(e)
+        m = self.matrix(e) if parent is None else matmul4(parent, self.matrix(e))
         if t == 102:
             if depth > 8:
                 raise _Unconvertible("composite curves nested too deeply")
@@ -188,7 +189,7 @@ class _Converter:
             raise _Unconvertible(f"curve of type {t} is not supported (126, 110, 100, 102 are)")
         if np.array_equal(m, np.eye(4)):
             return segs
-        return [np.column_stack([s[:, :3] @ m[:3, :3].T + m[:3, 3], s[:, 3]]) for s in segs]
+        return [np.column_stack([affine(s[:, :3], m), s[:, 3]]) for s in segs]
 
     def param_curve(self, seq) -> list[np.ndarray]:
         """Bezier segments (u, v, w) of a parameter-space curve (x, y of the IGES curve)."""
@@ -206,7 +207,7 @@ class _Converter:
             p = self.params(e)
             axis = self.ent(int(p[1]), (110,))
             am = self.matrix(axis)
-            a = axis.coordinates @ am[:3, :3].T + am[:3, 3]
+            a = affine(axis.coordinates, am)
             gen, gcirc = self.model_curve(int(p[2]))
             try:
                 surf, circ = revolve(gen, a[0], a[1] - a[0], _float(p[3]), _float(p[4]))
@@ -418,7 +419,7 @@ def _transformed(surf: NurbsSurface, m: np.ndarray) -> NurbsSurface:
     if np.array_equal(m, np.eye(4)):
         return surf
     pts = surf.points.copy()
-    pts[..., :3] = pts[..., :3] @ m[:3, :3].T + m[:3, 3]
+    pts[..., :3] = affine(pts[..., :3], m)
     return NurbsSurface(surf.degree_u, surf.degree_v, surf.knots_u, surf.knots_v, pts, surf.domain)
 
 
