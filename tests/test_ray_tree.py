@@ -100,9 +100,12 @@ def check_pixels(scene, opts, pixels, size=SIZE):
         primary = tree.rays[0]
         assert primary.kind == "primary" and primary.hit == frame.hit[y, x] and primary.patch == frame.patch[y, x]
         assert tree.shadow_rays == frame.shadow_rays[y, x] == sum(r.kind == "shadow" for r in tree.rays)
-        assert np.array_equal(np.float32(np.nan if tree.shadow is None else tree.shadow), frame.shadow[y, x],
-                              equal_nan=True), (x, y)
-        assert tree.penumbra == frame.penumbra[y, x]
+        if frame.shadow is None:  # shadows off
+            assert tree.shadow is None and tree.penumbra == -1
+        else:
+            assert np.array_equal(np.float32(np.nan if tree.shadow is None else tree.shadow), frame.shadow[y, x],
+                                  equal_nan=True), (x, y)
+            assert tree.penumbra == frame.penumbra[y, x]
         want = frame.radiance[y, x]
         got = want * np.nan if tree.radiance is None else tree.radiance.astype(np.float32)
         assert np.array_equal(got, want, equal_nan=True), (x, y)  # bit for bit
@@ -135,6 +138,28 @@ def test_glass_and_mirror_trees_under_other_options():
     assert any(r.kind == "shadow" and r.depth == 2 for r in rays)
     assert all(r.corner is None for r in rays)  # no box corner with the shift method
     assert all(r.depth <= 2 for r in rays)
+
+
+TWO_LIGHTS = [{"type": "point", "position": [-4, -3, 6], "intensity": 0.5},
+              {"type": "rect", "corner": [3, -3, 7], "edge1": [1, 0, 0], "edge2": [0, 1, 0], "samples": 4}]
+
+
+@pytest.mark.parametrize("lights, settings", [(TWO_LIGHTS, {"penumbra": "expanded", "light_samples": 3}),
+                                              (None, {}), (TWO_LIGHTS, {"shadows": False, "trivial_tests": False})],
+                         ids=["two-lights", "headlight", "no-shadows"])
+def test_glass_teapot_trees_with_other_lights(lights, settings):
+    data = {"objects": [{"file": S.TEAPOT_BPT, "material": "glass"},
+                        {"patches": [quad(-6, 6, -6, 6, 0.0)], "material": "floor"}],
+            "materials": {"glass": {"color": [0.2, 0.2, 0.2], "transmit": 0.5, "reflect": 0.2},
+                          "floor": {"reflect": 0.3}},
+            "camera": {"eye": [6, -9, 5], "look_at": [0, 0, 1.5], "up": [0, 0, 1], "fov_deg": 40}}
+    if lights:
+        data["lights"] = lights
+    pixels = [(x, y) for y in range(1, SIZE[1], 4) for x in range(1, SIZE[0], 4)]
+    trees = check_pixels(S.load(data), Options(**settings), pixels)
+    lights_seen = {e["light"] for t in trees for e in t.lights}
+    assert lights_seen == set(range(len(lights or [None])))
+    assert any(r.kind == "refracted" for t in trees for r in t.rays)
 
 
 def test_box_corner_and_subdivision_traces_of_each_ray():

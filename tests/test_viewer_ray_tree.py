@@ -78,3 +78,28 @@ def test_click_lists_the_ray_tree_and_draws_the_chosen_ray(xvfb, warm_kernels, t
     assert status["inspector"]["outline_vertices"] == drawn  # the chosen ray's boxes and every ray
     tree = json.loads(dump.read_text())["ray_tree"]
     assert tree == json_safe(want.to_json())  # the dump's new key: the tracer's ray tree
+
+
+def test_a_failing_ray_tree_is_logged_and_the_pixel_s_trace_kept(teapot, monkeypatch):
+    from types import SimpleNamespace
+
+    from viewer import interaction
+    from viewer.state import AppState
+    from viewer.worker import GeometryCache
+
+    def broken(*args):
+        raise RuntimeError("no tree today")
+
+    monkeypatch.setattr(interaction, "inspect_tree", broken)
+    state = AppState(scene=teapot, view=view_of(teapot), image_size=SIZE)
+    boxes = []
+    viewer = SimpleNamespace(state=state, geometry=GeometryCache(), display=SimpleNamespace(set_boxes=boxes.append))
+    ui = interaction.Interaction(viewer)
+    job = ui.inspect(64, 72)
+    assert job.tree_done.wait(300)
+    ui.refresh_inspection()
+    ins = state.inspector
+    assert ins is not None and ins.trace.hit and ins.tree is None and "no tree today" in ins.tree_error
+    assert ui.tree_pending is None and state.inspecting is None
+    assert any(level == "error" and "no tree today" in text for _, level, text in state.messages)
+    assert len(boxes[-1]) > 0  # the pixel's boxes are drawn all the same
