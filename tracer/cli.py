@@ -298,8 +298,9 @@ def cmd_trace(args) -> int:
         geom = prepare(scene, opts.precision)
         tr = trace_pixel(scene, opts, x, y, size=args.size, geometry=geom)
         out = tr.to_json()
-        if args.rays or args.ray_steps:  # a new key: the contract's keys stay as they are
-            tree = ray_tree(scene, opts, x, y, size=args.size, geometry=geom, steps=args.ray_steps)
+        tree = ray_tree(scene, opts, x, y, size=args.size, geometry=geom, steps=args.ray_steps) \
+            if args.rays or args.ray_steps else None
+        if tree is not None:  # a new key: the contract's keys stay as they are
             out["ray_tree"] = tree.to_json(steps=args.ray_steps)
         _write_json(outs, out, output)
         if args.plot:
@@ -309,9 +310,8 @@ def cmd_trace(args) -> int:
     what = (f"hit patch {tr.patch} at t={tr.t:.9g}, box {tr.hit_step()}" if tr.hit else "miss")
     _say(args, f"pixel {x},{y}: {what}; {len(ev)} boxes ({counts}), effort {tr.effort}"
                + (" [trace truncated]" if tr.truncated else ""))
-    if "ray_tree" in out:
-        kinds = [r["kind"] for r in out["ray_tree"]["rays"]]
-        _say(args, "ray tree: " + ", ".join(f"{kinds.count(k)} {k}" for k in dict.fromkeys(kinds)))
+    if tree is not None:
+        _say(args, f"ray tree: {tree.census()}")
     return 0
 
 

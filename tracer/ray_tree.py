@@ -117,6 +117,11 @@ class RayTree:
     penumbra: int = -1
     radiance: np.ndarray | None = None
 
+    def census(self) -> str:
+        """How many rays of each kind, e.g. '1 primary, 1 penumbra test, 16 shadow, 1 reflected'."""
+        kinds = [r.kind for r in self.rays]
+        return ", ".join(f"{kinds.count(k)} {k.replace('_', ' ')}" for k in KINDS if k in kinds)
+
     def to_json(self, steps: bool = False) -> dict:
         return {"pixel": [int(v) for v in self.pixel], "origin_method": self.origin_method,
                 "shadow": self.shadow, "shadow_rays": int(self.shadow_rays), "penumbra": int(self.penumbra),

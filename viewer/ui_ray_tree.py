@@ -5,8 +5,6 @@ from __future__ import annotations
 
 from imgui_bundle import imgui
 
-from tracer.ray_tree import KINDS
-
 from .ray_lines import ray_colour
 from .ui_rows import clipped_rows
 
@@ -25,8 +23,7 @@ def _cells(ray) -> tuple:
 
 
 def _summary(tree) -> None:
-    kinds = [r.kind for r in tree.rays]
-    imgui.text(", ".join(f"{kinds.count(k)} {k.replace('_', ' ')}" for k in KINDS if k in kinds))
+    imgui.text(tree.census())
     if tree.radiance is None:
         return
     shadow = "-" if tree.shadow is None else f"{tree.shadow:.4g}"
