@@ -16,7 +16,9 @@ the machine is:
   "compiling ...", for at least HOLD_SECONDS, doing Python work all along (as numba's compiler
   does, holding the GIL in turns); the window is grabbed to $PSRT_HOOK_SHOT meanwhile;
 - hold-trace: the inspector's first (compiling) trace takes until the window has drawn
-  HOLD_FRAMES frames showing "tracing pixel X,Y (compiling ...)", the same way.
+  HOLD_FRAMES frames showing "tracing pixel X,Y (compiling ...)", the same way;
+- choose-ray: when the clicked pixel's ray tree arrives, its first shadow ray (else its first
+  secondary ray) with a subdivision trace is chosen, as a click on its row would.
 
 The load hooks apply to the file named by $PSRT_HOOK_FILE (a base name), or to every load.
 If the window stopped drawing while it waits, the hold never ends and the run's --timeout
@@ -183,6 +185,26 @@ def install(hooks) -> None:
         return trace_compiled(kind, variant, args, on_compile)
 
     tracer.trace_one.compiled = held_trace_compiled
+    if "choose-ray" in _hooks:
+        _install_choose_ray()
+
+
+def _install_choose_ray() -> None:
+    from viewer import interaction
+    adopt = interaction.Interaction._adopt_tree
+
+    def adopt_and_choose(self, job):
+        adopt(self, job)
+        ins = self.v.state.inspector
+        if ins is None or ins.tree is None:
+            return
+        traced = [i for i, r in enumerate(ins.tree.rays) if i and r.steps is not None]
+        shadow = [i for i in traced if ins.tree.rays[i].kind == "shadow"]
+        if traced:
+            ins.ray, ins.step = (shadow or traced)[0], -1
+            self.update_outlines()
+
+    interaction.Interaction._adopt_tree = adopt_and_choose
 
 
 def main(argv) -> int:

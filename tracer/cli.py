@@ -281,7 +281,9 @@ def cmd_render(args) -> int:
 
 
 def cmd_trace(args) -> int:
+    from .geometry import prepare
     from .plot import trace_plot
+    from .ray_tree import ray_tree
     from .trace_one import trace_pixel
 
     output = args.output or STDOUT
@@ -293,8 +295,14 @@ def cmd_trace(args) -> int:
         for warning in check_extent(scene, opts.precision):  # what it cannot bound raises, before any work
             print(f"psrt {args.command}: warning: {warning}", file=sys.stderr)
         x, y = args.pixel
-        tr = trace_pixel(scene, opts, x, y, size=args.size)
-        _write_json(outs, tr.to_json(), output)
+        geom = prepare(scene, opts.precision)
+        tr = trace_pixel(scene, opts, x, y, size=args.size, geometry=geom)
+        out = tr.to_json()
+        tree = ray_tree(scene, opts, x, y, size=args.size, geometry=geom, steps=args.ray_steps) \
+            if args.rays or args.ray_steps else None
+        if tree is not None:  # a new key: the contract's keys stay as they are
+            out["ray_tree"] = tree.to_json(steps=args.ray_steps)
+        _write_json(outs, out, output)
         if args.plot:
             outs.write(args.plot, lambda f: trace_plot(tr, f))
     ev = tr.events
@@ -302,6 +310,8 @@ def cmd_trace(args) -> int:
     what = (f"hit patch {tr.patch} at t={tr.t:.9g}, box {tr.hit_step()}" if tr.hit else "miss")
     _say(args, f"pixel {x},{y}: {what}; {len(ev)} boxes ({counts}), effort {tr.effort}"
                + (" [trace truncated]" if tr.truncated else ""))
+    if tree is not None:
+        _say(args, f"ray tree: {tree.census()}")
     return 0
 
 
@@ -369,6 +379,9 @@ def add_commands(sub) -> None:
     p.add_argument("-o", "--output", metavar="TRACE.json", help="write the trace here (default: stdout)")
     p.add_argument("--plot", metavar="PNG", help="box diameter over box index, with Dammertz's optimum")
     p.add_argument("--size", type=parse_size, help="image size WxH (default: the scene's, else 512x512)")
+    p.add_argument("--rays", action="store_true", help="add the pixel's ray tree under `ray_tree`: its primary, "
+                   "shadow, reflected and refracted rays and penumbra tests, as the render traced them")
+    p.add_argument("--ray-steps", action="store_true", help="--rays with each ray's subdivision trace")
     add_option_flags(p)
     _add_quiet(p)
     _add_strict(p)

@@ -112,9 +112,12 @@ class Lighting:
         self.seconds = dict.fromkeys(PHASES, 0.0)
         self.centre_rays = 0
         self._lock = threading.Lock()
-        # recorder(kind, **rays) sees every batch of secondary rays (the pixel inspector's ray tree):
-        # kind 'shadow' (pix, code, light, origin, target, occluded), 'proven_lit' (pix, code, light,
-        # origin, lit), 'secondary' (pix, code, origin, direction, hit: kernel channels of the hits)
+        # recorder(kind, **rays) sees every batch of secondary rays (the pixel inspector's ray tree,
+        # ray_tree.py): kind 'shadow' (pix, code, light, origin, target, occluded, effort), 'proven_lit'
+        # (pix, code, light, origin, centre, lit: the points tested only), 'secondary' (pix, code,
+        # origin, direction, hit: kernel channels of the hits), each with the batch `rays` traced
+        # (ray_batch.batch_rays; none for proven_lit) and the boxes and normals the origins left from
+        # (box_min, box_max, side); 'samples' (pix, code, light, points (m, S, 3), visible (m, S)).
         self.recorder = None
 
     def _clock(self, phase, start):
@@ -123,13 +126,15 @@ class Lighting:
 
     # ---- a unit ------------------------------------------------------------------------
 
-    def shade_unit(self, frame, pixels: np.ndarray) -> None:
-        """Radiance, shadow, shadow_rays and penumbra of a unit's pixels (k, 2) into frame."""
+    def shade_unit(self, frame, pixels: np.ndarray, ids=None) -> None:
+        """Radiance, shadow, shadow_rays and penumbra of a unit's pixels (k, 2) into frame. ids: the
+        pixels' numbers (k,) that seed their light samples, by default row * width + column (a
+        frame holding part of an image gives the whole image's: ray_tree.py)."""
         ys, xs = pixels[:, 0], pixels[:, 1]
         hit = frame.hit[ys, xs]
         if not hit.any():
             return
-        ids = (ys.astype(np.int64) * frame.hit.shape[1] + xs)[hit]
+        ids = (ys.astype(np.int64) * frame.hit.shape[1] + xs if ids is None else np.asarray(ids, np.int64))[hit]
         k = len(ids)
         v = self._primary(frame, ys[hit], xs[hit])
         radiance = np.zeros((k, 3))
@@ -186,6 +191,8 @@ class Lighting:
             count = self.counts[li]
             lp = points(light, v.pos, seeds(pixel_ids, v.code, li), count)
             vis, rays, lit = self._visibility(v, lp, li, pixel_ids)
+            if self.recorder is not None:
+                self.recorder("samples", pix=v.pix, code=v.code, light=li, points=lp, visible=vis)
             traced += rays
             if lit is not None:
                 klass = np.maximum(klass, np.where(lit, LIT, PENUMBRA).astype(np.int8))
@@ -216,28 +223,30 @@ class Lighting:
         lit = None
         if self.sets[li] is not None:
             start = time.perf_counter()
-            lit = self._proven_lit(origin, li, v.threshold, v.grow, need.any(axis=1), lp)
+            lit, asked = self._proven_lit(origin, li, v.threshold, v.grow, need.any(axis=1), lp)
             need = need & ~lit[:, None]
             if self.recorder is not None:
-                self.recorder("proven_lit", pix=v.pix, code=v.code, light=li, origin=origin, lit=lit)
+                self.recorder("proven_lit", pix=v.pix[asked], code=v.code[asked], light=li, origin=origin[asked],
+                              centre=self.lights[li].centre(), lit=lit[asked], box_min=v.lo[asked],
+                              box_max=v.hi[asked], side=v.normal[asked])
             self._clock("penumbra_tests", start)
         start = time.perf_counter()
         rows, cols = np.nonzero(need)
         occluded = np.zeros((m, count), bool)
-        if len(rows):
-            o = origin[rows]
-            dt = v.grow[rows] * np.linalg.norm(lp[rows, cols] - o, axis=1)
-            rays = batch_rays(o, lp[rows, cols] - o, 0.0, 1.0, v.threshold[rows], dt)
-            occluded[rows, cols] = self.tracer.occluded(rays)[0]
+        o = origin[rows]
+        dt = v.grow[rows] * np.linalg.norm(lp[rows, cols] - o, axis=1)
+        rays = batch_rays(o, lp[rows, cols] - o, 0.0, 1.0, v.threshold[rows], dt)
+        occluded[rows, cols], effort = self.tracer.occluded(rays)
         self._clock("shadow_rays", start)
         if self.recorder is not None:
-            self.recorder("shadow", pix=v.pix[rows], code=v.code[rows], light=li, origin=origin[rows],
-                          target=lp[rows, cols], occluded=occluded[rows, cols])
+            self.recorder("shadow", pix=v.pix[rows], code=v.code[rows], light=li, origin=o, target=lp[rows, cols],
+                          occluded=occluded[rows, cols], effort=effort, rays=rays, box_min=v.lo[rows],
+                          box_max=v.hi[rows], side=v.normal[rows])
         return front & ~occluded, need.sum(axis=1).astype(np.int32), lit
 
     def _proven_lit(self, origin, li, threshold, grow, asked, lp):
         """(m,) bool: Lemma 3.1 / 4.2 (penumbra.py) prove every sample ray from these origins to
-        the sample points lp (m, S, 3) unoccluded."""
+        the sample points lp (m, S, 3) unoccluded; and (m,) bool: the points tested."""
         lit = np.zeros(len(origin), bool)
         ask = asked if self.opts.penumbra != "tmax" else asked & inside(origin, self.box)
         idx = np.nonzero(ask)[0]
@@ -258,7 +267,7 @@ class Lighting:
                                               half_extent(self.lights[li]), cone)[0]
             with self._lock:
                 self.centre_rays += len(idx)
-        return lit
+        return lit, ask
 
     # ---- secondary rays --------------------------------------------------------------
 
@@ -292,10 +301,12 @@ class Lighting:
         if self.slope > 0.0:  # adaptive: a curved mirror spreads the beam (curvature.py)
             kappa = max_curvature(self.scene, v.patch[src], patch_parameters(self.geom, v.patch[src], v.uv[src]))
             grow = grow + 2.0 * kappa * v.threshold[src]
-        out = self.tracer.closest(batch_rays(origin, d, 0.0, np.inf, v.threshold[src], grow))
+        rays = batch_rays(origin, d, 0.0, np.inf, v.threshold[src], grow)
+        out = self.tracer.closest(rays)
         hit = out.hit[0]
         if self.recorder is not None:
-            self.recorder("secondary", pix=v.pix[src], code=code, origin=origin, direction=d, hit=out)
+            self.recorder("secondary", pix=v.pix[src], code=code, origin=origin, direction=d, hit=out, rays=rays,
+                          box_min=v.lo[src], box_max=v.hi[src], side=side)
         miss = ~hit
         np.add.at(radiance, v.pix[src[miss]], weight[miss] * environment(d[miss]))
         self._clock("secondary_rays", start)

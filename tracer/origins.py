@@ -37,6 +37,12 @@ def patch_ulps(geom) -> np.ndarray:
     return out
 
 
+def box_corner(lo, hi, normal) -> np.ndarray:
+    """(k, 3) the corners of boxes (lo, hi) on the side of `normal` (by its octant): where
+    box_corner origins start before they are moved outwards."""
+    return np.where(np.asarray(normal) >= 0.0, hi, lo)
+
+
 def robust_origins(method: str, *, lo, hi, position, normal, ulp=None, ulps: int = 7, threshold=None,
                    epsilon: float = 1e-4) -> np.ndarray:
     """(k, 3) float64 origins for rays leaving k hit boxes (lo, hi) on the side of `normal` (unit,
@@ -45,7 +51,7 @@ def robust_origins(method: str, *, lo, hi, position, normal, ulp=None, ulps: int
     normal = np.asarray(normal, np.float64)
     if method == "box_corner":
         up = normal >= 0.0
-        corner = np.where(up, hi, lo)
+        corner = box_corner(lo, hi, normal)
         step = ulps * np.asarray(ulp, np.float64)
         moved = np.where(up, corner + step, corner - step)
         # at least `ulps` float64 steps: a step below the world coordinate's spacing would vanish

@@ -227,6 +227,15 @@ def cache_summary(geom: Geometry) -> dict | None:
     return {k: sum(p[k] for p in parts) for k in parts[0]} | {"threads": len(parts)}
 
 
+def frame_lighting(scene, geom: Geometry, opts: Options, inputs: KernelInputs, pixel_angle: float, eye,
+                   on_compile=None):
+    """The lighting.Lighting that shades a frame traced with `inputs` (kernel_inputs) seen from `eye`."""
+    from .lighting import Lighting
+    # secondary rays go through the BVH whatever opts.accel: one set of batch kernels per scene
+    shared = inputs if opts.accel == "bvh" else kernel_inputs(geom, opts.with_(accel="bvh"), pixel_angle)
+    return Lighting(scene, geom, opts.with_(accel="bvh"), shared, eye, on_compile)
+
+
 def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float, *,
                on_tile=None, cancel: threading.Event | None = None, progress=None,
                order=None, on_compile=None, on_build=None, driver: str = "closest", budget=None,
@@ -268,11 +277,8 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     caches = thread_caches(geom, opts, inputs, thread_count(opts)) if variant.cache else None
     lighting = None
     if scene is not None:
-        from .lighting import Lighting
         eye = view.eye if view is not None else origins[0, 0]
-        # secondary rays go through the BVH whatever opts.accel: one set of batch kernels per scene
-        shared = inputs if opts.accel == "bvh" else kernel_inputs(geom, opts.with_(accel="bvh"), pixel_angle)
-        lighting = Lighting(scene, geom, opts.with_(accel="bvh"), shared, eye, on_compile)
+        lighting = frame_lighting(scene, geom, opts, inputs, pixel_angle, eye, on_compile)
         frame.add_lighting(opts.shadows)
 
     def work(unit):

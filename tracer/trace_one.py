@@ -84,8 +84,13 @@ class PixelTrace:
 
 
 def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angle: float,
-                    pixel=(0, 0), capacity: int = TRACE_CAPACITY) -> PixelTrace:
-    """Trace one ray with step recording; same kernel and options as the renderer."""
+                    pixel=(0, 0), capacity: int = TRACE_CAPACITY, *, t_min: float = 0.0, t_max: float = math.inf,
+                    t0: float = 0.0, dt: float | None = None, driver: str = "closest") -> PixelTrace:
+    """Trace one ray with step recording; same kernel and options as the renderer.
+
+    A primary ray by default; a secondary ray (ray_batch's batch rays) gives its interval
+    (t_min, t_max), its threshold of detail T0 + dT * t (dt None: the pixel angle's slope times
+    the direction's length) and its driver ('any' for shadow rays: the first hit box ends it)."""
     inputs = kernel_inputs(geom, opts, pixel_angle)
     slope, max_points = inputs.sizes[:2]
     lv = inputs.scene[0]
@@ -96,16 +101,16 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
     ray = np.zeros(RAY_LEN)
     hit = np.zeros(HIT_LEN)
     counts = np.zeros(COUNTER_LEN, np.int64)
-    make_ray(ray, o[0], o[1], o[2], d[0], d[1], d[2], 0.0, 0.0, slope * length)
-    hit[H_TIN] = math.inf
+    make_ray(ray, o[0], o[1], o[2], d[0], d[1], d[2], t_min, t0, slope * length if dt is None else dt)
+    hit[H_TIN] = t_max
     args = (ray, hit, inputs.scene, inputs.query, trace, counts, tile_scratch(inputs))
-    compiled("ray", variant_for(geom, opts, trace=True), args)(*args)
+    compiled("ray", variant_for(geom, opts, trace=True, driver=driver), args)(*args)
     effort = int(counts[C_EFFORT])
     leaf_patch = inputs.leaf_patch
     ctrl, pstart, deg_u, deg_v, rational = lv.ctrl, lv.pstart, lv.deg_u, lv.deg_v, lv.rational
     trace = tuple(trace)
     k = int(trace[2][0])
-    found = hit[H_TIN] < math.inf
+    found = hit[H_TIN] < t_max
     lo = hit[H_LO:H_LO + 3].copy()
     hi = hit[H_HI:H_HI + 3].copy()
     centre = 0.5 * (lo + hi)

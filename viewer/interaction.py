@@ -3,7 +3,8 @@
 Input is read through ImGui (so scripted input injected into ImGui's IO takes the same path)
 and ignored while ImGui wants it (a panel under the cursor, a text field with focus). A click's
 pixel is traced on a thread of its own: its first trace compiles the step-recording kernels,
-which must not stop the window drawing.
+which must not stop the window drawing. The same thread then traces the pixel's ray tree, which
+the inspector adopts when it is done (the pixel's own trace shows first).
 """
 from __future__ import annotations
 
@@ -14,22 +15,30 @@ import traceback
 from imgui_bundle import imgui
 
 from . import camera_control
-from .picking import hover_values, inspect_pixel, outline_vertices, uncompiled_variants, window_to_pixel
+import numpy as np
+
+from .picking import hover_values, inspect_pixel, inspect_tree, outline_vertices, uncompiled_variants, window_to_pixel
+from .ray_lines import ray_tree_vertices
 from .ui_camera import frame_scene, reset_view, restore_bookmark, save_bookmark
 
 CLICK_SLOP = 3.0  # pixels the mouse may move between press and release and still be a click
 BOOKMARK_KEYS = [getattr(imgui.Key, f"_{i}") for i in range(1, 10)]
 
 
+def _failure(e: Exception) -> str:
+    return f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=3)}"
+
+
 class PixelJob:
-    """One pixel traced for the inspector on a daemon thread; `result` is an Inspection or an error."""
+    """One pixel traced for the inspector on a daemon thread; `result` is an Inspection or an error,
+    then `tree` its ray tree (tracer.ray_tree.RayTree) or an error."""
 
     def __init__(self, geometry, scene, opts, view, size, pixel, keep_step=None, select=True):
         self.pixel, self.keep_step, self.select, self.scene = pixel, keep_step, select, scene
         self.started = time.perf_counter()
         self.compiling = []  # variant labels its trace compiles first
-        self.result = None
-        self.done = threading.Event()
+        self.result = self.tree = None
+        self.done, self.tree_done = threading.Event(), threading.Event()
         args = (geometry, scene, opts, view, size, *pixel)
         threading.Thread(target=self._run, args=args, name="psrt-inspect", daemon=True).start()
 
@@ -38,8 +47,15 @@ class PixelJob:
             self.compiling = uncompiled_variants(geometry, scene, opts)
             self.result = inspect_pixel(geometry, scene, opts, *rest)
         except Exception as e:
-            self.result = f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=3)}"
+            self.result = _failure(e)
         self.done.set()
+        if not isinstance(self.result, str):
+            try:
+                self.compiling = uncompiled_variants(geometry, scene, opts, tree=True)
+                self.tree = inspect_tree(geometry, scene, opts, *rest)
+            except Exception as e:
+                self.tree = _failure(e)
+        self.tree_done.set()
 
 
 class Interaction:
@@ -51,6 +67,7 @@ class Interaction:
         self.hover = None
         self.new_inspection = False  # the panel switches to the Inspector tab once
         self.pending: PixelJob | None = None  # the pixel being traced
+        self.tree_pending: PixelJob | None = None  # the inspected pixel, its ray tree being traced
 
     def _pixel(self, mx, my):
         return window_to_pixel(self.v.region, self.v.state.image_size, mx, my)
@@ -114,7 +131,7 @@ class Interaction:
         if pressed(imgui.Key.h) or pressed(imgui.Key.f1):
             st.show_help = not st.show_help
         if pressed(imgui.Key.escape):
-            st.inspector, self.pending = None, None
+            st.inspector, self.pending, self.tree_pending = None, None, None
             self.update_outlines()
         if pressed(imgui.Key.o):
             self.toggle_overlay()
@@ -147,6 +164,7 @@ class Interaction:
         st.inspector = job.result
         if job.keep_step is not None and 0 <= job.keep_step < len(st.inspector.trace.steps_f) - 1:
             st.inspector.step = job.keep_step
+        self.tree_pending = job
         self.update_outlines()
         self.new_inspection = job.select
         t = st.inspector.trace
@@ -165,6 +183,12 @@ class Interaction:
             self.pending = None
             self._adopt_inspection(job)
         st.inspecting = None
+        tree = self.tree_pending
+        if tree is not None:
+            if tree.tree_done.is_set():
+                self._adopt_tree(tree)
+            else:  # the image says so while its first trace compiles the shadow rays' kernel
+                st.inspecting = (tree.pixel, tree.started, tree.compiling)
         ins = st.inspector
         if ins is None or ins.opts is None or ins.view != st.view or st.scene is None:
             return
@@ -172,9 +196,32 @@ class Interaction:
             ins.opts = st.opts  # a failing re-trace is reported once, not every frame
             self.inspect(*ins.pixel, keep_step=ins.step, select=False)
 
+    def _adopt_tree(self, job: PixelJob) -> None:
+        """The ray tree into the inspection it belongs to (a newer click or Esc drops it)."""
+        st, self.tree_pending = self.v.state, None
+        ins = st.inspector
+        if ins is None or ins is not job.result:
+            return
+        if isinstance(job.tree, str):
+            ins.tree_error = job.tree
+            st.log(f"ray tree of pixel {job.pixel[0]},{job.pixel[1]} failed: {job.tree}", "error")
+            return
+        ins.tree = job.tree
+        self.update_outlines()
+
     def update_outlines(self) -> None:
-        ins = self.v.state.inspector
-        self.v.display.set_boxes(outline_vertices(ins) if ins is not None else None)
+        """The chosen trace's boxes, and the ray tree's rays while they are shown."""
+        st = self.v.state
+        ins = st.inspector
+        if ins is None:
+            return self.v.display.set_boxes(None)
+        parts = [outline_vertices(ins)]
+        if st.show_rays and ins.tree is not None and ins.view is not None:
+            try:
+                parts.append(ray_tree_vertices(ins.tree, ins.view, ins.ray))
+            except Exception as e:  # the boxes are still worth drawing
+                st.log(f"cannot draw the ray tree: {_failure(e)}", "error")
+        self.v.display.set_boxes(np.concatenate(parts))
 
     def outline_view(self):
         """Boxes are in world space: project them with the current view."""

@@ -2,7 +2,8 @@
 
 The inspector traces the clicked pixel's ray exactly as the renderer does (same
 primary rays, same kernel, same options) with step recording, plus the float64
-reference trace of the same ray for its error.
+reference trace of the same ray for its error; then the pixel's ray tree (tracer.ray_tree)
+with each ray's subdivision trace.
 """
 from __future__ import annotations
 
@@ -12,13 +13,15 @@ from tracer.camera import primary_rays
 from tracer.search_steps import EVENT_NAMES
 from tracer.options import Options
 from tracer.plot import EVENT_COLOURS
-from tracer.trace_one import trace_ray_steps
+from tracer.ray_tree import RayTree, ray_tree, trace_steps
+from tracer.trace_one import PixelTrace, trace_ray_steps
 from tracer.variants import COMPILED, label, variant_for
 
 from .state import Inspection
 from .surface_info import hit_surface, info_json
 
 MAX_OUTLINED_BOXES = 4000
+MAX_TRACED_RAYS = 256  # rays of a tree given their subdivision trace (thousands of light samples would take long)
 CURRENT_RGBA = (1.0, 1.0, 1.0, 1.0)
 HIT_BOX_RGBA = (1.0, 0.1, 0.1, 1.0)
 # Edges of a box as pairs of corner indices; corner k has x = bit 0, y = bit 1, z = bit 2.
@@ -52,10 +55,15 @@ def pixel_ray(view, size, precision: str, px: int, py: int):
 REFERENCE_OPTIONS = Options(criterion="float", precision="f64")
 
 
-def uncompiled_variants(geometry, scene, opts: Options) -> list:
-    """Labels of the step-recording kernel variants inspect_pixel needs and this process has not
-    compiled (or loaded) yet: the first inspection compiles them."""
-    needed = [variant_for(geometry.get(scene, o.precision), o, trace=True) for o in (opts, REFERENCE_OPTIONS)]
+def uncompiled_variants(geometry, scene, opts: Options, tree: bool = False) -> list:
+    """Labels of the step-recording kernel variants inspect_pixel (or with `tree`, inspect_tree: its
+    secondary rays go through the BVH) needs and this process has not compiled (or loaded) yet:
+    the first inspection compiles them."""
+    if tree:
+        geom, bvh = geometry.get(scene, opts.precision), opts.with_(accel="bvh")
+        needed = [variant_for(geom, bvh, trace=True, driver=d) for d in ("closest", "any")]
+    else:
+        needed = [variant_for(geometry.get(scene, o.precision), o, trace=True) for o in (opts, REFERENCE_OPTIONS)]
     return [label(v) for v in dict.fromkeys(needed) if ("ray", v) not in COMPILED]
 
 
@@ -70,6 +78,22 @@ def inspect_pixel(geometry, scene, opts: Options, view, size, px: int, py: int) 
     # The hit's surface (NURBS, IGES entity, trim loops): gathered once here, where the scene is at hand.
     surface = hit_surface(scene, trace.patch, trace.uv) if trace.hit else None
     return Inspection((px, py), trace, ref, len(trace.steps_f) - 1, error, view, opts, surface)
+
+
+def inspect_tree(geometry, scene, opts: Options, view, size, px: int, py: int) -> RayTree:
+    """Pixel (px, py)'s ray tree, its first MAX_TRACED_RAYS rays with their subdivision traces."""
+    geom = geometry.get(scene, opts.precision)
+    tree = ray_tree(scene, opts, px, py, size=size, view=view, geometry=geom)
+    trace_steps(tree, scene, geom, opts, view, size, MAX_TRACED_RAYS)
+    return tree
+
+
+def shown_trace(ins: Inspection) -> PixelTrace:
+    """The subdivision trace the inspector shows: the chosen ray's of the tree, else the pixel's."""
+    tree = ins.tree
+    if tree is not None and 0 < ins.ray < len(tree.rays) and tree.rays[ins.ray].steps is not None:
+        return tree.rays[ins.ray].steps
+    return ins.trace
 
 
 def inspection_surface(ins: Inspection) -> dict | None:
@@ -87,10 +111,12 @@ def inspection_json(ins: Inspection) -> dict:
                         "position": [float(v) for v in ref.position] if ref.hit else None} if ref else None
     out["options"] = {k: getattr(ins.opts, k) for k in ins.opts.__dataclass_fields__} if ins.opts else None
     out["surface"] = info_json(inspection_surface(ins))
+    if ins.tree is not None:  # a new key, as `psrt trace --rays` writes it
+        out["ray_tree"] = ins.tree.to_json()
     return out
 
 
-def _box_lines(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+def box_lines(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """(n, 24, 3) edge endpoints of n boxes."""
     bits = np.array([[(k >> a) & 1 for a in range(3)] for k in range(8)], bool)
     corners = np.where(bits[None], hi[:, None, :], lo[:, None, :])  # (n, 8, 3)
@@ -103,7 +129,7 @@ def outline_vertices(ins: Inspection, max_boxes: int = MAX_OUTLINED_BOXES) -> np
     Boxes are coloured by their event (tracer.plot's colours), fainter the older they are;
     the chosen step's box is white and the reported hit box red, drawn last (on top).
     """
-    tr = ins.trace
+    tr = shown_trace(ins)
     k = len(tr.steps_f)
     if k == 0:
         return np.zeros((0, 7), np.float32)
@@ -124,20 +150,20 @@ def outline_vertices(ins: Inspection, max_boxes: int = MAX_OUTLINED_BOXES) -> np
         lists.append((tr.steps_f[[hit_step], 4:7], tr.steps_f[[hit_step], 7:10], np.array([HIT_BOX_RGBA])))
     out = []
     for lo_, hi_, col in lists:
-        pts = _box_lines(lo_, hi_).reshape(-1, 3)
+        pts = box_lines(lo_, hi_).reshape(-1, 3)
         cols = np.repeat(col, 24, axis=0)
         out.append(np.concatenate([pts, cols], axis=1))
     if tr.hit and 0 <= hit_step <= step and ins.view is not None:
-        out.append(_hit_marker(tr.position, ins.view))
+        out.append(hit_marker(tr.position, ins.view))
     return np.concatenate(out).astype(np.float32)
 
 
-def _hit_marker(position, view, size: float = 0.015) -> np.ndarray:
-    """A red 3-D cross at the hit, `size` of the eye distance long: final boxes are sub-pixel."""
+def hit_marker(position, view, size: float = 0.015, rgba=HIT_BOX_RGBA) -> np.ndarray:
+    """A 3-D cross at the hit (red), `size` of the eye distance long: final boxes are sub-pixel."""
     p = np.asarray(position, float)
     arm = size * float(np.linalg.norm(p - np.asarray(view.eye, float)))
     pts = np.concatenate([[p - arm * e, p + arm * e] for e in np.eye(3)])
-    return np.concatenate([pts, np.tile(HIT_BOX_RGBA, (6, 1))], axis=1)
+    return np.concatenate([pts, np.tile(rgba, (6, 1))], axis=1)
 
 
 def hover_values(state, px: int, py: int) -> list:

@@ -22,7 +22,7 @@ from tracer.stats import json_safe
 from tracer.variants import compile_report
 
 from . import outputs
-from .picking import pixel_to_window
+from .picking import pixel_to_window, shown_trace
 from .state import assign
 
 EXIT_OK, EXIT_BAD_ARGS, EXIT_TIMEOUT, EXIT_CLICK, EXIT_LOAD, EXIT_RENDER = 0, 2, 3, 4, 5, 6
@@ -141,8 +141,8 @@ class Script:
                 self._click_stage = 1
             elif self._click_stage >= 1:
                 io.add_mouse_pos_event(*self._click_pos)  # the glfw backend overwrites it each frame
-                if self._click_stage == 4 and viewer.interaction.pending is not None:
-                    return  # the pixel is being traced (its first trace compiles the kernels)
+                if self._click_stage == 4 and (viewer.interaction.pending or viewer.interaction.tree_pending):
+                    return  # the pixel, then its ray tree, is being traced (the first trace compiles kernels)
                 if self._click_stage in (2, 3):
                     io.add_mouse_button_event(0, self._click_stage == 2)
                 if self._click_stage == 4:
@@ -302,7 +302,11 @@ class Script:
             "applied": self.applied,
             "overlay": {k: v for k, v in st.overlay_info.items() if k != "lut"},
             "inspector": ({"pixel": list(ins.trace.pixel), "hit": bool(ins.trace.hit), "patch": int(ins.trace.patch),
-                           "boxes": len(ins.trace.steps_f), "error": ins.error} if ins else None),
+                           "boxes": len(ins.trace.steps_f), "error": ins.error,
+                           "ray_tree": {"rays": len(ins.tree.rays) if ins.tree else None, "error": ins.tree_error,
+                                        "rows_drawn": ins.rows_drawn, "chosen": ins.ray,
+                                        "shown_boxes": len(shown_trace(ins).steps_f)},
+                           "outline_vertices": viewer.display.box_count} if ins else None),
             "shader_error": viewer.display.error,
             "failed_loads": st.failed_loads, "loading": st.loading[0] if st.loading else None,
             "compiles": self.compiles, "notes": st.notes, "kernels": compile_report(),

@@ -100,6 +100,10 @@ class Inspection:
     view: View | None = None     # the view it was traced in
     opts: Options | None = None
     surface: dict | None = None  # the hit's NURBS surface, parameters and trim loops (surface_info)
+    tree: object = None          # tracer.ray_tree.RayTree, traced after the pixel (None meanwhile)
+    tree_error: str | None = None  # why the ray tree could not be traced
+    ray: int = 0                 # the ray tree's row whose subdivision trace is shown (0: the primary)
+    rows_drawn: int = 0          # ray tree rows the panel listed in its last frame (the scripted status)
 
 
 @dataclass
@@ -114,6 +118,7 @@ class AppState:
     fixed_size: tuple | None = None
     render: RenderState = field(default_factory=RenderState)
     inspector: Inspection | None = None
+    show_rays: bool = True               # draw the inspected pixel's secondary rays over the image
     hover: tuple | None = None           # image pixel under the cursor
     messages: list = field(default_factory=list)  # (time, level, text), newest last
     error: str | None = None             # the latest error, shown until dismissed

@@ -7,7 +7,7 @@ SHORTCUTS = (
     ("left drag", "orbit around the look-at point"),
     ("middle drag, shift + left drag", "pan"),
     ("mouse wheel", "zoom"),
-    ("left click", "inspect the pixel (trace, boxes, plot)"),
+    ("left click", "inspect the pixel (trace, boxes, plot, ray tree with its shadow and secondary rays)"),
     ("F", "frame the scene"),
     ("R", "reset the camera to the scene's"),
     ("B", "save a camera bookmark"),

@@ -8,7 +8,9 @@ from imgui_bundle import imgui, implot
 from tracer.search_steps import EVENT_NAMES
 from tracer.plot import EVENT_COLOURS, OPTIMUM_COLOUR
 
-from .picking import inspection_surface
+from .picking import inspection_surface, shown_trace
+from .ui_ray_tree import ray_tree_section
+from .ui_rows import clipped_rows
 from .surface_info import summary_rows as surface_rows
 
 PLOT_HEIGHT = 230
@@ -103,9 +105,11 @@ def surface_section(ins) -> None:
 
 def diameter_plot(ins) -> bool:
     """Box L1 diameter over box index, the optimum d(n) = s 2^(-n/2), hits marked; drag the step."""
-    t = ins.trace
+    t = shown_trace(ins)
     k = len(t.steps_f)
-    if k == 0 or not implot.begin_plot("##diameters", (-1, PLOT_HEIGHT)):
+    # the id changes with the pixel and ray, so a new trace frames its own axes
+    plot_id = f"##diameters-{ins.pixel[0]}-{ins.pixel[1]}-{ins.ray}"
+    if k == 0 or not implot.begin_plot(plot_id, (-1, PLOT_HEIGHT)):
         return False
     xs = np.arange(k, dtype=np.float64)
     ys = t.diameters.astype(np.float64)
@@ -137,36 +141,25 @@ def diameter_plot(ins) -> bool:
 
 
 def steps_table(ins) -> bool:
-    t = ins.trace
+    t = shown_trace(ins)
     changed = False
-    flags = (imgui.TableFlags_.scroll_y | imgui.TableFlags_.scroll_x | imgui.TableFlags_.row_bg | imgui.TableFlags_.borders_inner_v |
-             imgui.TableFlags_.sizing_fixed_fit)
-    if not imgui.begin_table("steps", 7, flags, (0, TABLE_HEIGHT)):
-        return False
-    for name in ("#", "patch", "depth", "u", "v", "diameter", "event"):
-        imgui.table_setup_column(name)
-    imgui.table_setup_scroll_freeze(0, 1)
-    imgui.table_headers_row()
-    clipper = imgui.ListClipper()
-    clipper.begin(len(t.steps_f))
-    while clipper.step():
-        for i in range(clipper.display_start, clipper.display_end):
-            f, n = t.steps_f[i], t.steps_i[i]
-            imgui.table_next_row()
+    columns = ("#", "patch", "depth", "u", "v", "diameter", "event")
+    for i in clipped_rows("steps", columns, len(t.steps_f), TABLE_HEIGHT):
+        f, n = t.steps_f[i], t.steps_i[i]
+        imgui.table_next_column()
+        clicked, _ = imgui.selectable(f"{i}", i == ins.step, imgui.SelectableFlags_.span_all_columns)
+        if clicked:
+            ins.step, changed = i, True
+        for text in (f"{n[0]}", f"{n[1]}", f"{f[0]:.4g}..{f[1]:.4g}", f"{f[2]:.4g}..{f[3]:.4g}",
+                     f"{f[10]:.3e}", EVENT_NAMES[n[2]]):
             imgui.table_next_column()
-            clicked, _ = imgui.selectable(f"{i}", i == ins.step, imgui.SelectableFlags_.span_all_columns)
-            if clicked:
-                ins.step, changed = i, True
-            for text in (f"{n[0]}", f"{n[1]}", f"{f[0]:.4g}..{f[1]:.4g}", f"{f[2]:.4g}..{f[3]:.4g}",
-                         f"{f[10]:.3e}", EVENT_NAMES[n[2]]):
-                imgui.table_next_column()
-                imgui.text(text)
-    imgui.end_table()
+            imgui.text(text)
     return changed
 
 
 def ui_inspector(state) -> bool:
-    """Returns True when the chosen step changed (the box outlines follow it)."""
+    """Returns True when the chosen step or ray, or the drawing of the rays, changed (the box
+    outlines follow)."""
     if not imgui.collapsing_header("Inspector", imgui.TreeNodeFlags_.default_open):
         return False
     ins = state.inspector
@@ -175,16 +168,21 @@ def ui_inspector(state) -> bool:
         return False
     _table("summary", summary_rows(ins))
     surface_section(ins)
-    k = len(ins.trace.steps_f)
+    changed = ray_tree_section(state)
+    trace = shown_trace(ins)
+    k = len(trace.steps_f)
+    which = "the primary ray" if trace is ins.trace else f"ray {ins.ray} ({ins.tree.rays[ins.ray].kind})"
+    imgui.separator_text(f"Subdivision of {which}")
     if k == 0:
         imgui.text_disabled("the ray met no patch box")
-        return False
-    imgui.separator_text("Subdivision")
-    changed = diameter_plot(ins)
+        return changed
+    changed |= diameter_plot(ins)
+    if ins.step >= k:
+        ins.step = k - 1
     moved, step = imgui.slider_int("step", ins.step if ins.step >= 0 else k - 1, 0, k - 1)
     if moved:
         ins.step, changed = step, True
-    f, n = ins.trace.steps_f[ins.step], ins.trace.steps_i[ins.step]
+    f, n = trace.steps_f[ins.step], trace.steps_i[ins.step]
     imgui.text(f"box {ins.step}: patch {n[0]}, depth {n[1]}, {EVENT_NAMES[n[2]]}, diameter {f[10]:.3e}")
     changed |= steps_table(ins)
     return changed
