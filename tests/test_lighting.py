@@ -265,7 +265,7 @@ def test_curvature_of_sphere_and_plane():
 
 
 def test_schlick_fresnel_and_total_internal_reflection():
-    from tracer.lighting import schlick
+    from tracer.vertices import schlick
     eta = np.array([1 / 1.5, 1 / 1.5, 1.5, 1.5, 1.0])
     cos_i = np.array([1.0, 0.0, 1.0, 0.5, 1.0])
     f = schlick(cos_i, eta)

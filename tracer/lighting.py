@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import threading
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -40,45 +39,10 @@ from .origins import patch_ulps, robust_origins
 from .penumbra import LIT, PENUMBRA, UNCLASSIFIED, expanded_set, inside, scene_box
 from .ray_batch import BatchTracer, batch_rays
 from .scene import Light
-from .shade import AMBIENT, BG_BOTTOM, BG_TOP, srgb_decode
+from .shade import AMBIENT
+from .vertices import Vertices, environment, facing, schlick, unit
 
 PHASES = ("shadow_rays", "penumbra_tests", "secondary_rays", "shading")
-
-
-@dataclass
-class Vertices:
-    """m hits of one level of the ray trees of a unit: the unit's pixel index, the path code (1
-    primary; 2c reflected, 2c + 1 refracted from c), the weight of their radiance, the hit box
-    and its centre, the unit normal facing the incoming ray, the incoming unit direction, the
-    patch and the (surface's) parameters of the hit, the threshold of detail there and its growth
-    per unit length along the rays leaving it, and whether the path is inside a refracting body."""
-
-    pix: np.ndarray
-    code: np.ndarray
-    weight: np.ndarray
-    lo: np.ndarray
-    hi: np.ndarray
-    pos: np.ndarray
-    normal: np.ndarray
-    d: np.ndarray
-    patch: np.ndarray
-    uv: np.ndarray
-    threshold: np.ndarray
-    grow: np.ndarray
-    inside: np.ndarray
-
-    def take(self, keep) -> "Vertices":
-        return Vertices(*(getattr(self, f)[keep] for f in self.__dataclass_fields__))
-
-
-def _unit(v):
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.where(n > 0, n, 1.0)
-
-
-def facing(normal, d):
-    """Normals turned to face against the directions d."""
-    return np.where(np.sum(normal * d, axis=-1, keepdims=True) > 0, -normal, normal)
 
 
 class Lighting:
@@ -158,7 +122,7 @@ class Lighting:
             frame.penumbra[ys[hit], xs[hit]] = penumbra
 
     def _primary(self, frame, ys, xs) -> Vertices:
-        d = _unit(frame.ray_dir[ys, xs])
+        d = unit(frame.ray_dir[ys, xs])
         dist = frame.t[ys, xs] * np.linalg.norm(frame.ray_dir[ys, xs], axis=-1)
         m = len(ys)
         return Vertices(np.arange(m), np.ones(m, np.int64), np.ones((m, 3)), frame.box_min[ys, xs],
@@ -199,7 +163,7 @@ class Lighting:
             glow = np.zeros((m, 3))
             seen = np.zeros(m)
             for s in range(count):  # sample by sample: the same sums whatever m
-                l_dir = _unit(lp[:, s] - v.pos)
+                l_dir = unit(lp[:, s] - v.pos)
                 ndl = np.sum(v.normal * l_dir, axis=1, keepdims=True)
                 r = 2.0 * ndl * v.normal - l_dir
                 rdv = np.clip(np.sum(r * view, axis=1, keepdims=True), 0.0, 1.0)
@@ -278,13 +242,13 @@ class Lighting:
         parts = []
         refl = np.nonzero(kr > 0)[0]
         if len(refl):
-            d = _unit(v.d[refl] + 2.0 * cos_i[refl, None] * v.normal[refl])
+            d = unit(v.d[refl] + 2.0 * cos_i[refl, None] * v.normal[refl])
             parts.append((refl, d, v.normal[refl], kr[refl], 2 * v.code[refl], v.inside[refl]))
         k2 = 1.0 - eta * eta * (1.0 - cos_i * cos_i)
         refr = np.nonzero((kt > 0) & (k2 > 0))[0]
         if len(refr):
             e = eta[refr, None]
-            d = _unit(e * v.d[refr] + (e * cos_i[refr, None] - np.sqrt(k2[refr, None])) * v.normal[refr])
+            d = unit(e * v.d[refr] + (e * cos_i[refr, None] - np.sqrt(k2[refr, None])) * v.normal[refr])
             parts.append((refr, d, -v.normal[refr], kt[refr], 2 * v.code[refr] + 1, ~v.inside[refr]))
         if not parts:
             return v.take(np.zeros(0, np.int64))
@@ -319,18 +283,3 @@ class Lighting:
         """Time per phase (summed over threads), centre rays of the penumbra tests, build figures."""
         return {"seconds": {k: round(s, 4) for k, s in self.seconds.items()}, "centre_rays": self.centre_rays,
                 "expanded_sets": [s.report for s in self.sets if s is not None]}
-
-
-def schlick(cos_i: np.ndarray, eta: np.ndarray) -> np.ndarray:
-    """Fresnel reflectance by Schlick's approximation for light arriving at cos_i to the normal from
-    a medium of relative index 1 / eta (eta = n_from / n_to); 1 under total internal reflection."""
-    sin2_t = eta * eta * (1.0 - cos_i * cos_i)
-    r0 = ((1.0 - eta) / (1.0 + eta)) ** 2
-    return np.where(sin2_t >= 1.0, 1.0, r0 + (1.0 - r0) * (1.0 - cos_i) ** 5)
-
-
-def environment(d: np.ndarray) -> np.ndarray:
-    """Linear radiance of the background's grey seen along unit directions d (k, 3): lighter
-    upwards (+z), between the display gradient's ends."""
-    g = BG_BOTTOM + (BG_TOP - BG_BOTTOM) * 0.5 * (1.0 + d[:, 2:3])
-    return np.repeat(srgb_decode(g), 3, axis=1)
