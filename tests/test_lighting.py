@@ -117,6 +117,16 @@ def test_fast_penumbra_is_bit_identical_and_traces_fewer_rays(method, settings):
     assert np.any((base.shadow > 0.0) & (base.shadow < 1.0))  # there is a penumbra
 
 
+def test_triviality_tests_decide_rays_behind_the_surface_and_change_nothing():
+    scene, opts = teapot_light(samples=4)
+    with_tests = render(scene, opts, size=SIZE)
+    without = render(scene, opts.with_(trivial_tests=False), size=SIZE)
+    assert np.array_equal(with_tests.radiance, without.radiance, equal_nan=True)
+    decided = with_tests.extras["lighting"]["trivially_decided"]
+    assert decided > 0 and without.extras["lighting"]["trivially_decided"] == 0
+    assert without.shadow_rays.sum() - with_tests.shadow_rays.sum() == decided
+
+
 def test_renders_are_reproducible_across_threads_orders_and_tiles():
     scene, opts = teapot_light(samples=4, penumbra="tmax")
     a = render(scene, opts.with_(threads=1), size=SIZE)

@@ -75,6 +75,7 @@ class Lighting:
         self.width = None
         self.seconds = dict.fromkeys(PHASES, 0.0)
         self.centre_rays = 0
+        self.trivial = 0  # shadow rays decided without tracing: the sample lies behind the surface
         self._lock = threading.Lock()
         # recorder(kind, **rays) sees every batch of secondary rays (the pixel inspector's ray tree,
         # ray_tree.py): kind 'shadow' (pix, code, light, origin, target, occluded, effort), 'proven_lit'
@@ -184,6 +185,9 @@ class Lighting:
                                 ulp=self.ulp[v.patch], ulps=self.opts.origin_ulps, threshold=v.threshold,
                                 epsilon=self.opts.origin_epsilon)
         need = front if self.opts.trivial_tests else np.ones_like(front)
+        if self.opts.trivial_tests:
+            with self._lock:
+                self.trivial += int(m * count - front.sum())
         lit = None
         if self.sets[li] is not None:
             start = time.perf_counter()
@@ -280,6 +284,8 @@ class Lighting:
                         out.uv[0, hit], v.threshold[src[hit]] + grow[hit] * t, grow[hit], inside_now[hit])
 
     def report(self) -> dict:
-        """Time per phase (summed over threads), centre rays of the penumbra tests, build figures."""
+        """Time per phase (summed over threads), centre rays of the penumbra tests, shadow rays the
+        triviality tests decided, the expanded data sets' build figures."""
         return {"seconds": {k: round(s, 4) for k, s in self.seconds.items()}, "centre_rays": self.centre_rays,
+                "trivially_decided": self.trivial,
                 "expanded_sets": [s.report for s in self.sets if s is not None]}
