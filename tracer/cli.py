@@ -308,13 +308,20 @@ def cmd_trace(args) -> int:
 def cmd_bench(args) -> int:
     from .bench import format_table, run_bench
 
+    if args.coherence:
+        from .cli_coherence import cmd_bench_coherence
+        return cmd_bench_coherence(args)
+    if args.scenes:
+        raise ValueError("--scenes: only with --coherence (one --scene otherwise)")
+    args.scene = args.scene or str(_default_scene())
+    size, runs = args.size or (512, 512), args.runs or 5
     outs = planned_outputs(("--json", args.json, True), scene=args.scene)
     base = options_from_args(args)
     with outs:
         scene = load_inputs(outs, args.scene)
-        memory.check_render(*args.size, reference=True, frames=2, limit=args.memory_limit)
+        memory.check_render(*size, reference=True, frames=2, limit=args.memory_limit)
         log = None if args.quiet else (lambda text: print(text, file=sys.stderr, flush=True))
-        result = run_bench(scene, base, size=args.size, runs=args.runs, criteria=args.criteria,
+        result = run_bench(scene, base, size=size, runs=runs, criteria=args.criteria,
                            splits=args.splits, precisions=args.precisions, log=log)
         result["scene"] = str(args.scene)
         if args.json:
@@ -374,11 +381,12 @@ def add_commands(sub) -> None:
     _add_strict(p)
     p.set_defaults(func=cmd_trace)
 
-    p = sub.add_parser("bench", help="time and check every criterion x split x precision")
-    p.add_argument("--scene", default=str(_default_scene()), help="scene (default: sample_models/teapot.json)")
-    p.add_argument("--size", type=parse_size, default=(512, 512), help="image size WxH (default: 512x512)")
-    p.add_argument("--runs", type=positive_int, default=5, help="timed runs per configuration after one warm-up "
-                   "(default: 5; the median is reported)")
+    p = sub.add_parser("bench", help="time and check every criterion x split x precision (--coherence: the "
+                       "coherence options)")
+    p.add_argument("--scene", help="scene (default: sample_models/teapot.json)")
+    p.add_argument("--size", type=parse_size, help="image size WxH (default: 512x512; --coherence 256x256)")
+    p.add_argument("--runs", type=positive_int, help="timed runs per configuration after one warm-up "
+                   "(default: 5, --coherence 3; the median is reported)")
     p.add_argument("--json", metavar="OUT", help="write all results as JSON")
     p.add_argument("--criteria", nargs="+", choices=CRITERIA, default=list(CRITERIA), metavar="C",
                    help=f"criteria to run (default: all of {', '.join(CRITERIA)})")
@@ -386,6 +394,8 @@ def add_commands(sub) -> None:
                    help=f"split heuristics (default: {', '.join(SPLITS)})")
     p.add_argument("--precisions", nargs="+", choices=PRECISIONS, default=list(PRECISIONS), metavar="P",
                    help=f"precisions (default: {', '.join(PRECISIONS)})")
+    from .cli_coherence import add_flags
+    add_flags(p)
     add_option_flags(p, exclude=SWEPT)
     _add_memory_limit(p)
     _add_quiet(p)

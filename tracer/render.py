@@ -214,10 +214,12 @@ def cache_summary(geom: Geometry) -> dict | None:
 
 def fresh_caches(geom: Geometry, opts: Options) -> None:
     """Replace the geometry's surface-tree caches by new, empty ones for renders with opts, made
-    now: the next frame starts cold, without paying for their allocation (benchmarks)."""
+    now, their memory mapped: the next frame starts cold without paying for the allocation
+    (benchmarks)."""
     with _CACHES_LOCK:
         _CACHES.pop(id(geom), None)
-    thread_caches(geom, opts, kernel_inputs(geom, opts, 0.0), thread_count(opts))
+    for c in thread_caches(geom, opts, kernel_inputs(geom, opts, 0.0), thread_count(opts)):
+        c.map_pages()
 
 
 def _frame_cache(caches: list, before: list | None = None):

@@ -204,6 +204,12 @@ class ThreadCache:
         arrays = (self.buf, self.box, self.mf, self.mi) + ((self.buf64,) if self.buf64 is not self.buf else ())
         return sum(a.nbytes for a in arrays + tuple(self.record))
 
+    def map_pages(self) -> None:
+        """Write the zero-filled arrays once, so the system maps their memory now and not while a
+        frame is timed (np.zeros leaves that to the first write)."""
+        for a in (self.buf, self.box, self.mf, self.mi, self.buf64, self.record.evict):
+            a.fill(0)
+
     def summary(self) -> dict:
         """Running totals (searches that found a tree, that made one; trees released), the nodes
         held and their capacity, bytes, and the surfaces searched since `seen` was last cleared."""
