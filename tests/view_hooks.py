@@ -16,7 +16,8 @@ the machine is:
   "compiling ...", for at least HOLD_SECONDS, doing Python work all along (as numba's compiler
   does, holding the GIL in turns); the window is grabbed to $PSRT_HOOK_SHOT meanwhile;
 - hold-trace: the inspector's first (compiling) trace takes until the window has drawn
-  HOLD_FRAMES frames showing "tracing pixel X,Y (compiling ...)", the same way.
+  HOLD_FRAMES frames showing "tracing pixel X,Y (compiling ...)", the same way;
+- stats-tab: the "Stats & output" tab is the selected one, so its panels are drawn every frame.
 
 The load hooks apply to the file named by $PSRT_HOOK_FILE (a base name), or to every load.
 If the window stopped drawing while it waits, the hold never ends and the run's --timeout
@@ -183,6 +184,17 @@ def install(hooks) -> None:
         return trace_compiled(kind, variant, args, on_compile)
 
     tracer.trace_one.compiled = held_trace_compiled
+
+    if "stats-tab" in _hooks:
+        from imgui_bundle import imgui
+        begin_tab_item = imgui.begin_tab_item
+
+        def stats_selected(label, p_open=None, flags=0):
+            if label == "Stats & output":
+                flags |= imgui.TabItemFlags_.set_selected
+            return begin_tab_item(label, p_open, flags)
+
+        app.imgui.begin_tab_item = stats_selected
 
 
 def main(argv) -> int:
