@@ -76,6 +76,8 @@ def test_the_counters_and_the_cache_figures_are_sane(teapot_run):
 def test_quiet_and_bad_usage(capsys, tmp_path):
     assert run("bench", "--scenes", "teapot", "--size", "8x8") == 2
     assert "--scenes: only with --coherence" in capsys.readouterr().err
+    assert run("bench", "--tables", "accel", "--size", "8x8") == 2
+    assert "--tables: only with --coherence" in capsys.readouterr().err
     assert run("bench", "--coherence", "--scene", "x.json") == 2
     assert "--scenes" in capsys.readouterr().err
     assert run("bench", "--coherence", "--scenes", str(tmp_path / "missing.json"), "--size", "4x4", "-q") == 2
@@ -97,3 +99,12 @@ def test_the_checks_say_when_a_target_is_missed():
     missed = {what: ok for what, _, _, ok in checks(_fake(0.6, 0.5, [1.0, 1.0], [0.8, 0.8]))}
     assert not any(missed.values())
     assert "NOT met" in format_checks(_fake(0.6, 0.5, [1.0, 1.0], [0.8, 0.8]))
+
+
+def test_tables_chooses_the_tables_and_quiet_keeps_stderr_empty(capsys):
+    assert run("bench", "--coherence", "--scenes", "teapot", "--tables", "order", "--size", "4x4", "--runs", "1",
+               "-q") == 0
+    captured = capsys.readouterr()
+    assert captured.err == "" and TITLES["order"] in captured.out
+    assert TITLES["bundles"] not in captured.out and TITLES["accel"] not in captured.out
+    assert captured.out.count("peano, ") == 4 and "no subdivision" not in captured.out

@@ -68,8 +68,12 @@ def unbounded_cache_mb(geom, opts: Options) -> float:
     return float(min(max(int(mib) + 1, 1), 65536))
 
 
-def rows_for(geom, base: Options) -> list:
-    """The rows of the three tables for a prepared geometry."""
+def rows_for(geom, base: Options, tables=TABLES) -> list:
+    """The rows of the tables (of TABLES) for a prepared geometry."""
+    return [r for r in _all_rows(geom, base) if r.table in tables]
+
+
+def _all_rows(geom, base: Options) -> list:
     plain = base.with_(**PLAIN)
     rows = []
     for criterion in BUNDLE_CRITERIA:
@@ -115,13 +119,13 @@ def _build_seconds(geom, opts: Options, runs: int, clock) -> float:
     return best
 
 
-def run_scene(scene, base: Options, *, size, runs: int, log=None, on_compile=None) -> dict:
+def run_scene(scene, base: Options, *, size, runs: int, tables=TABLES, log=None, on_compile=None) -> dict:
     """Time every row's configuration on one scene; {'patches', 'leaves', 'prepare_seconds',
     'rows': [...]} with each row's times, speed-up, frame_stats and (accel rows) build time."""
     start = time.perf_counter()
     geom = prepare(scene, base.precision)
     prepared = time.perf_counter() - start
-    rows = rows_for(geom, base)
+    rows = rows_for(geom, base, tables)
     configs = list(dict.fromkeys([r.opts for r in rows] + [r.plain for r in rows]))
     clock = time.process_time if base.threads == 1 else time.perf_counter
     say = log or (lambda text: None)
@@ -164,15 +168,16 @@ def _changes(opts: Options, base: Options) -> dict:
     return {k: v for k, v in vars(opts).items() if getattr(base, k) != v}
 
 
-def run_coherence(scenes: dict, base: Options, *, size=(256, 256), runs: int = 3, log=None,
+def run_coherence(scenes: dict, base: Options, *, size=(256, 256), runs: int = 3, tables=TABLES, log=None,
                   on_compile=None) -> dict:
     """Every scene of {label: loaded scene} through run_scene; the result `psrt bench --coherence`
     prints (bench_tables) and writes as JSON."""
     if runs < 1:
         raise ValueError(f"--runs: expected at least 1, got {runs}")
     result = {"size": list(size), "runs": runs, "threads": base.threads,
-              "timing": "cpu" if base.threads == 1 else "wall", "scenes": {}}
+              "timing": "cpu" if base.threads == 1 else "wall", "tables": list(tables), "scenes": {}}
     for label, scene in scenes.items():
         say = None if log is None else (lambda text, label=label: log(f"{label}: {text}"))
-        result["scenes"][label] = run_scene(scene, base, size=size, runs=runs, log=say, on_compile=on_compile)
+        result["scenes"][label] = run_scene(scene, base, size=size, runs=runs, tables=tables, log=say,
+                                            on_compile=on_compile)
     return result

@@ -137,6 +137,7 @@ def format_checks(result: dict) -> str:
 
 def format_result(result: dict) -> str:
     """Every scene's three tables, the footer and the checks."""
-    parts = [format_table(table, label, scene) for label, scene in result["scenes"].items() for table in TABLES]
+    parts = [format_table(table, label, scene) for label, scene in result["scenes"].items()
+             for table in TABLES if table in result["tables"]]
     return "\n\n".join(parts + [footer(result), format_checks(result)])
 

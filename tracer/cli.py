@@ -311,8 +311,8 @@ def cmd_bench(args) -> int:
     if args.coherence:
         from .cli_coherence import cmd_bench_coherence
         return cmd_bench_coherence(args)
-    if args.scenes:
-        raise ValueError("--scenes: only with --coherence (one --scene otherwise)")
+    if args.scenes or args.tables:
+        raise ValueError(f"{'--scenes' if args.scenes else '--tables'}: only with --coherence")
     args.scene = args.scene or str(_default_scene())
     size, runs = args.size or (512, 512), args.runs or 5
     outs = planned_outputs(("--json", args.json, True), scene=args.scene)

@@ -6,6 +6,7 @@ import sys
 import time
 
 from . import memory
+from .bench_coherence import TABLES
 from .bench_scenes import NAMES, scene_label, scene_path
 
 DEFAULT_SIZE = (256, 256)
@@ -18,6 +19,8 @@ def add_flags(parser) -> None:
                              "the surface-tree cache, each row's speed-up against the plain setting in the same run "
                              f"(default size {DEFAULT_SIZE[0]}x{DEFAULT_SIZE[1]}, {DEFAULT_RUNS} runs, one render "
                              "thread timed by CPU time)")
+    parser.add_argument("--tables", nargs="+", choices=TABLES, metavar="TABLE",
+                        help=f"with --coherence: the tables to run (default: all of {', '.join(TABLES)})")
     parser.add_argument("--scenes", nargs="+", metavar="SCENE",
                         help=f"with --coherence: scenes by name ({', '.join(NAMES)}) or file "
                              f"(default: all four)")
@@ -64,7 +67,8 @@ def cmd_bench_coherence(args) -> int:
             scenes[label] = load_scene(path)
             if log is not None:
                 log(f"{label}: loaded {path} in {time.perf_counter() - start:.1f} s")
-        result = run_coherence(scenes, base, size=size, runs=runs, log=log, on_compile=_compile_log(log))
+        result = run_coherence(scenes, base, size=size, runs=runs, tables=args.tables or TABLES, log=log,
+                               on_compile=_compile_log(log))
         result["scene_files"] = {label: str(path) for label, path in paths.items()}
         if args.json:
             _write_json(outs, result, args.json)
