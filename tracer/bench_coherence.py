@@ -28,9 +28,10 @@ from dataclasses import dataclass
 
 from . import accel
 from .bvh import build_bvh
+from .camera import primary_rays, view_of
 from .geometry import prepare
 from .options import BUNDLES, ORDERS, Options
-from .render import fresh_caches, render
+from .render import fresh_caches, trace_rays
 from .stats import frame_stats
 from .surface_cache import mib_for_every_tree
 
@@ -132,11 +133,15 @@ def run_scene(scene, base: Options, *, size, runs: int, tables=TABLES, log=None,
     say(f"{scene.n_patches:,} patches, {geom.n_patches:,} leaves, prepared in {prepared:.1f} s; "
         f"{len(configs)} configurations, {size[0]}x{size[1]}")
 
+    view = view_of(scene)
+
     def frame(opts):
         if opts.cache:
             fresh_caches(geom, opts)  # empty, allocated and mapped before the clock starts
         t0 = clock()
-        f = render(scene, opts, size=size, geometry=geom, on_compile=on_compile)
+        # primary rays alone, as render() traces them (without any shading's secondary rays)
+        origins, dirs = primary_rays(view, size[0], size[1], opts.precision)
+        f = trace_rays(geom, opts, origins, dirs, view.pixel_angle(size[1]), view=view, on_compile=on_compile)
         return clock() - t0, f
 
     start = time.perf_counter()
