@@ -19,6 +19,7 @@ the machine is:
   HOLD_FRAMES frames showing "tracing pixel X,Y (compiling ...)", the same way;
 - choose-ray: when the clicked pixel's ray tree arrives, its first shadow ray (else its first
   secondary ray) with a subdivision trace is chosen, as a click on its row would.
+- stats-tab: the "Stats & output" tab is the selected one, so its panels are drawn every frame.
 
 The load hooks apply to the file named by $PSRT_HOOK_FILE (a base name), or to every load.
 If the window stopped drawing while it waits, the hold never ends and the run's --timeout
@@ -205,6 +206,17 @@ def _install_choose_ray() -> None:
             self.update_outlines()
 
     interaction.Interaction._adopt_tree = adopt_and_choose
+
+    if "stats-tab" in _hooks:
+        from imgui_bundle import imgui
+        begin_tab_item = imgui.begin_tab_item
+
+        def stats_selected(label, p_open=None, flags=0):
+            if label == "Stats & output":
+                flags |= imgui.TabItemFlags_.set_selected
+            return begin_tab_item(label, p_open, flags)
+
+        app.imgui.begin_tab_item = stats_selected
 
 
 def main(argv) -> int:

@@ -10,125 +10,19 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import sys
-from dataclasses import asdict, replace
+from dataclasses import asdict
 from pathlib import Path
 
 from . import memory
 from .limits import check_extent
-from .options import CRITERIA, PRECISIONS, SPLITS, Options, option_fields, parse_assignment
+from .options import CRITERIA, PRECISIONS, SPLITS
 from .output_files import STDOUT, OutputFiles
-from .record import quote, read_value
 from .stats import CHANNELS
+from .cli_args import (add_option_flags, flag_options, options_from_args, parse_map, parse_memory,  # noqa: F401
+                       parse_pixel, parse_size, positive_int)
 
 SWEPT = ("criterion", "split", "precision", "mode")  # bench sweeps these instead of taking flags
-
-
-# ---- argument types ---------------------------------------------------------------
-
-MAX_SIDE = 16384
-_INT = "([0-9]{1,9})"  # a plain ASCII integer (no '_', no other scripts' digits), not absurdly long
-_SIZE, _PIXEL, _COUNT = (re.compile(p, re.ASCII) for p in (f"{_INT}[xX]{_INT}", f"{_INT},{_INT}", _INT))
-
-
-def _ints(pattern, text: str):
-    """The integers of text matched whole by pattern, or None."""
-    m = pattern.fullmatch(text)
-    return None if m is None else tuple(int(g) for g in m.groups())
-
-
-def parse_size(text: str):
-    """'WxH' -> (W, H), integers in 1..MAX_SIDE."""
-    size = _ints(_SIZE, text)
-    if size is None or not all(1 <= side <= MAX_SIDE for side in size):
-        raise argparse.ArgumentTypeError(f"expected WxH with integer sides in 1..{MAX_SIDE} (e.g. 512x512), "
-                                         f"got {quote(text)}")
-    return size
-
-
-def positive_int(text: str) -> int:
-    """A plain ASCII integer >= 1."""
-    value = _ints(_COUNT, text)
-    if value is None or value[0] < 1:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {quote(text)}")
-    return value[0]
-
-
-def parse_memory(text: str) -> int:
-    try:
-        return memory.parse_bytes(text)
-    except ValueError as e:
-        raise argparse.ArgumentTypeError(str(e)) from None
-
-
-def parse_map(text: str):
-    """'CHANNEL=PNG' -> (channel, path), the channel one of stats.CHANNELS."""
-    name, sep, path = text.partition("=")
-    if not sep or not path:
-        raise argparse.ArgumentTypeError(f"expected CHANNEL=PNG, got {quote(text)}")
-    if name not in CHANNELS:
-        raise argparse.ArgumentTypeError(f"unknown channel {quote(name)} (known: {', '.join(CHANNELS)})")
-    return name, path
-
-
-def parse_pixel(text: str):
-    """'X,Y' -> (X, Y): column and row (row 0 at the top)."""
-    pixel = _ints(_PIXEL, text)
-    if pixel is None:
-        raise argparse.ArgumentTypeError(f"expected X,Y with non-negative integer column and row, got {quote(text)}")
-    return pixel
-
-
-def option_type(f):
-    """The argparse type of field f's flag: read_value (type, integrality, range) as argparse errors."""
-    def read(raw):
-        try:
-            return read_value(f, raw)
-        except ValueError as e:
-            raise argparse.ArgumentTypeError(str(e)) from None
-    read.__name__ = type(f.default).__name__
-    return read
-
-
-def option_flag(f) -> str:
-    return "--" + (f.metadata.get("cli") or f.name.replace("_", "-"))
-
-
-def add_option_flags(parser, exclude=()):
-    """One flag per Options field (type, choices, range and default from its metadata), and --set."""
-    groups = {}
-    for f in option_fields():
-        if f.name in exclude:
-            continue
-        meta = f.metadata
-        group = groups.get(meta["group"]) or groups.setdefault(
-            meta["group"], parser.add_argument_group(f"{meta['group'].lower()} options"))
-        extra = f"; {'integer' if type(f.default) is int else 'range'} {meta['lo']}..{meta['hi']}" \
-            if meta["lo"] is not None else ""
-        if isinstance(f.default, bool):  # --trims / --no-trims
-            group.add_argument(option_flag(f), dest=f"opt_{f.name}", action=argparse.BooleanOptionalAction,
-                               default=None, help=f"{meta['help']} (default: {'on' if f.default else 'off'})")
-            continue
-        group.add_argument(option_flag(f), dest=f"opt_{f.name}", type=option_type(f), default=None,
-                           choices=meta["choices"], metavar=None if meta["choices"] else f.name.upper(),
-                           help=f"{meta['help']} (default: {f.default}{extra})")
-    parser.add_argument("--set", action="append", default=[], metavar="OPTION=VALUE",
-                        help="set any option by name, e.g. --set fixed_size=1e-4 (repeatable, applied last)")
-
-
-def flag_options(args) -> Options:
-    """Options() with the given option flags (the opt_<name> attributes) applied, validated."""
-    return replace(Options(), **{f.name: getattr(args, f"opt_{f.name}") for f in option_fields()
-                                 if getattr(args, f"opt_{f.name}", None) is not None})
-
-
-def options_from_args(args) -> Options:
-    """Options() with the given flags, then the --set assignments, applied and validated."""
-    opts = flag_options(args)
-    for text in args.set:
-        opts = parse_assignment(opts, text)
-    return opts
 
 
 def scene_files(scene) -> list:
@@ -318,13 +212,20 @@ def cmd_trace(args) -> int:
 def cmd_bench(args) -> int:
     from .bench import format_table, run_bench
 
+    if args.coherence:
+        from .cli_coherence import cmd_bench_coherence
+        return cmd_bench_coherence(args)
+    if args.scenes or args.tables:
+        raise ValueError(f"{'--scenes' if args.scenes else '--tables'}: only with --coherence")
+    args.scene = args.scene or str(_default_scene())
+    size, runs = args.size or (512, 512), args.runs or 5
     outs = planned_outputs(("--json", args.json, True), scene=args.scene)
     base = options_from_args(args)
     with outs:
         scene = load_inputs(outs, args.scene)
-        memory.check_render(*args.size, reference=True, frames=2, limit=args.memory_limit)
+        memory.check_render(*size, reference=True, frames=2, limit=args.memory_limit)
         log = None if args.quiet else (lambda text: print(text, file=sys.stderr, flush=True))
-        result = run_bench(scene, base, size=args.size, runs=args.runs, criteria=args.criteria,
+        result = run_bench(scene, base, size=size, runs=runs, criteria=args.criteria,
                            splits=args.splits, precisions=args.precisions, log=log)
         result["scene"] = str(args.scene)
         if args.json:
@@ -387,11 +288,12 @@ def add_commands(sub) -> None:
     _add_strict(p)
     p.set_defaults(func=cmd_trace)
 
-    p = sub.add_parser("bench", help="time and check every criterion x split x precision")
-    p.add_argument("--scene", default=str(_default_scene()), help="scene (default: sample_models/teapot.json)")
-    p.add_argument("--size", type=parse_size, default=(512, 512), help="image size WxH (default: 512x512)")
-    p.add_argument("--runs", type=positive_int, default=5, help="timed runs per configuration after one warm-up "
-                   "(default: 5; the median is reported)")
+    p = sub.add_parser("bench", help="time and check every criterion x split x precision (--coherence: the "
+                       "coherence options)")
+    p.add_argument("--scene", help="scene (default: sample_models/teapot.json)")
+    p.add_argument("--size", type=parse_size, help="image size WxH (default: 512x512; --coherence 256x256)")
+    p.add_argument("--runs", type=positive_int, help="timed runs per configuration after one warm-up "
+                   "(default: 5, --coherence 3; the median is reported)")
     p.add_argument("--json", metavar="OUT", help="write all results as JSON")
     p.add_argument("--criteria", nargs="+", choices=CRITERIA, default=list(CRITERIA), metavar="C",
                    help=f"criteria to run (default: all of {', '.join(CRITERIA)})")
@@ -399,6 +301,8 @@ def add_commands(sub) -> None:
                    help=f"split heuristics (default: {', '.join(SPLITS)})")
     p.add_argument("--precisions", nargs="+", choices=PRECISIONS, default=list(PRECISIONS), metavar="P",
                    help=f"precisions (default: {', '.join(PRECISIONS)})")
+    from .cli_coherence import add_flags
+    add_flags(p)
     add_option_flags(p, exclude=SWEPT)
     _add_memory_limit(p)
     _add_quiet(p)

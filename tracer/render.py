@@ -194,9 +194,9 @@ _CACHES: dict = {}
 _CACHES_LOCK = threading.Lock()
 
 
-def thread_caches(geom: Geometry, opts: Options, inputs: KernelInputs, count: int) -> queue.SimpleQueue:
-    """`count` surface-tree caches for renders of `geom` with `opts`, each lent to one work unit
-    at a time (a queue: take one, give it back), the same ones from frame to frame."""
+def thread_caches(geom: Geometry, opts: Options, inputs: KernelInputs, count: int) -> list:
+    """`count` surface-tree caches for renders of `geom` with `opts`, each to be lent to one work
+    unit at a time, the same ones from frame to frame."""
     from .surface_cache import ThreadCache
     from .tile_kernel import working_slots
     key = (opts.criterion, opts.fixed_size, opts.pixel_fraction, opts.mantissa_ulps, opts.split, opts.trims,
@@ -211,19 +211,20 @@ def thread_caches(geom: Geometry, opts: Options, inputs: KernelInputs, count: in
             caches.append(ThreadCache(geom.n_patches, working_slots(inputs), inputs.sizes[1], geom.ctrl.dtype,
                                       bool(np.any(geom.rational)), opts.cache_mb, opts.cache_depth))
         _CACHES[id(geom)] = (weakref.ref(geom), key, caches)
-    lent = queue.SimpleQueue()
-    for c in caches[:count]:
-        lent.put(c)
-    return lent
+    return caches[:count]
+
+
+def _held_caches(geom: Geometry) -> list:
+    ref, _, caches = _CACHES.get(id(geom), (None, None, []))
+    return caches if ref is not None and ref() is geom else []
 
 
 def cache_summary(geom: Geometry) -> dict | None:
     """The geometry's surface-tree caches: searches that found a tree, that made one, nodes held,
     bytes (summed over the render threads); None without the cache."""
-    ref, _, caches = _CACHES.get(id(geom), (None, None, []))
-    if ref is None or ref() is not geom or not caches:
+    parts = [c.summary() for c in _held_caches(geom)]
+    if not parts:
         return None
-    parts = [c.summary() for c in caches]
     return {k: sum(p[k] for p in parts) for k in parts[0]} | {"threads": len(parts)}
 
 
@@ -234,6 +235,33 @@ def frame_lighting(scene, geom: Geometry, opts: Options, inputs: KernelInputs, p
     # secondary rays go through the BVH whatever opts.accel: one set of batch kernels per scene
     shared = inputs if opts.accel == "bvh" else kernel_inputs(geom, opts.with_(accel="bvh"), pixel_angle)
     return Lighting(scene, geom, opts.with_(accel="bvh"), shared, eye, on_compile)
+
+
+def fresh_caches(geom: Geometry, opts: Options) -> None:
+    """Replace the geometry's surface-tree caches by new, empty ones for renders with opts, made
+    now, their memory mapped: the next frame starts cold without paying for the allocation
+    (benchmarks)."""
+    with _CACHES_LOCK:
+        _CACHES.pop(id(geom), None)
+    for c in thread_caches(geom, opts, kernel_inputs(geom, opts, 0.0), thread_count(opts)):
+        c.map_pages()
+
+
+def _frame_cache(caches: list, before: list | None = None):
+    """Before a frame (before None): clear each cache's surfaces searched and return its totals.
+    After it: the frame's figures for frame.extras["cache"]: searches that found a tree (hits),
+    that made one (misses), trees released, surfaces searched (summed over the threads' caches:
+    a surface two threads searched counts twice, as each made its own tree), and the nodes held,
+    their capacity and bytes at the end (surface_cache.ThreadCache.summary)."""
+    if before is None:
+        for c in caches:
+            c.record.seen[:] = 0
+        return [c.summary() for c in caches]
+    after = [c.summary() for c in caches]
+    total = {k: sum(a[k] for a in after) for k in after[0]}
+    for k in ("hits", "misses", "released"):
+        total[k] -= sum(b[k] for b in before)
+    return total | {"threads": len(caches)}
 
 
 def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float, *,
@@ -274,7 +302,11 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     if view is not None:
         frame.extras["view"] = view
 
-    caches = thread_caches(geom, opts, inputs, thread_count(opts)) if variant.cache else None
+    caches = thread_caches(geom, opts, inputs, thread_count(opts)) if variant.cache else []
+    lent = queue.SimpleQueue()  # each cache serves one unit at a time
+    for c in caches:
+        lent.put(c)
+    before = _frame_cache(caches) if caches else None
     lighting = None
     if scene is not None:
         eye = view.eye if view is not None else origins[0, 0]
@@ -284,12 +316,12 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     def work(unit):
         if cancel is not None and cancel.is_set():
             return None
-        cache = caches.get() if caches is not None else None
+        cache = lent.get() if caches else None
         try:
             kernel(unit.pixels, unit.blocks, origins, dirs, *args, tile_scratch(inputs, cache))
         finally:
             if cache is not None:
-                caches.put(cache)
+                lent.put(cache)
         if lighting is not None:
             lighting.shade_unit(frame, unit.pixels)
         return unit
@@ -309,6 +341,8 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     frame.seconds = time.perf_counter() - start
     if lighting is not None:
         frame.extras["lighting"] = lighting.report()
+    if caches:
+        frame.extras["cache"] = _frame_cache(caches, before)
     return frame
 
 

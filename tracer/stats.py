@@ -198,10 +198,31 @@ def _summary(values) -> dict | None:
     return {"min": float(v.min()), "mean": float(v.mean()), "max": float(v.max())}
 
 
+def coherence_stats(frame) -> dict:
+    """Lischinski and Gonczarowski's counters of a render (1990, section 5), per ray over all rays:
+    surfaces (patches) whose box was tested, surfaces searched, ray-box tests; and with the
+    surface-tree cache (None without): the cache hit ratio, searches of the rays that started from
+    a cached tree over all their searches, and the cache misses per surface, the trees the frame
+    made over the surfaces it searched (render._frame_cache; per render thread: 1 when each
+    searched surface's tree was made once, more when a bounded cache released and remade trees,
+    less when trees were kept from an earlier frame); `cache`: the frame's cache figures."""
+    rays = max(frame.hit.size, 1)
+    out = {"surfaces_tested_per_ray": float(frame.surfaces_tested.sum()) / rays,
+           "surfaces_searched_per_ray": float(frame.patches_tested.sum()) / rays,
+           "box_tests_per_ray": float(frame.box_tests.sum()) / rays,
+           "cache_hit_ratio": None, "cache_misses_per_surface": None, "cache": frame.extras.get("cache")}
+    if out["cache"] is not None:
+        hits, misses = int(frame.cache_hits.sum()), int(frame.cache_misses.sum())
+        out["cache_hit_ratio"] = hits / (hits + misses) if hits + misses else None
+        c = out["cache"]
+        out["cache_misses_per_surface"] = c["misses"] / c["surfaces"] if c["surfaces"] else None
+    return out
+
+
 def frame_stats(frame) -> dict:
     """Rays, hits, trace time, and each kernel counter's min/mean/max over all rays and over hits
-    (effort, effort_hits, nodes, nodes_hits, ...); the kernel variant, and the acceleration
-    structure's build figures (accel.aggregate_for)."""
+    (effort, effort_hits, nodes, nodes_hits, ...); the kernel variant, the acceleration
+    structure's build figures (accel.aggregate_for), and the coherence counters (coherence_stats)."""
     out = {"rays": int(frame.hit.size), "hits": int(frame.hit.sum()), "time": float(frame.seconds)}
     for kc in COUNTERS:
         counts = getattr(frame, kc.name)
@@ -211,6 +232,8 @@ def frame_stats(frame) -> dict:
     for key in ("variant", "accel"):
         if key in frame.extras:
             out[key] = frame.extras[key]
+    if all(getattr(frame, name) is not None for name in ("surfaces_tested", "patches_tested", "box_tests")):
+        out["coherence"] = coherence_stats(frame)
     if "lighting" in frame.extras:
         out["lighting"] = lighting_stats(frame)
     return out

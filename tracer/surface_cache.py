@@ -35,9 +35,10 @@ from .jit import njit
 # a node's two cached halves (slot) or -1; lru_prev, lru_next (n_leaves,) int32: the queue of
 # patches with a tree, least recently searched first; pairs_free (pairs,) int32: a stack of
 # free pair indices; evict (nodes + 2,) int32: the release walk's stack; stack (working,) int32:
-# the search's stack of slots; free_slots (working,) int32: working slots not in use; state
-# int64: see S_*.
-CacheRecord = namedtuple("CacheRecord", "root child lru_prev lru_next pairs_free evict stack free_slots state")
+# the search's stack of slots; free_slots (working,) int32: working slots not in use; seen
+# (n_leaves,) uint8: 1 for each patch searched since the renderer last cleared it (the surfaces a
+# frame searched, for its misses per surface); state int64: see S_*.
+CacheRecord = namedtuple("CacheRecord", "root child lru_prev lru_next pairs_free evict stack free_slots seen state")
 S_FIRST, S_FREE_PAIRS, S_HEAD, S_TAIL, S_DEPTH, S_HITS, S_MISSES, S_NODES, S_RELEASES = range(9)
 STATE_LEN = 9
 
@@ -48,6 +49,20 @@ NODE_OVERHEAD = 6 * 8 + 17 * 8 + 5 * 4 + 4
 
 def node_bytes(max_points: int, point_bytes: int) -> int:
     return 4 * max_points * point_bytes + NODE_OVERHEAD
+
+
+def point_bytes(dtype, rational: bool) -> int:
+    """Bytes a control point's coordinate takes in a node: the working precision's, and a float64
+    copy beside float32 ones where rational patches are searched in float64."""
+    size = np.dtype(dtype).itemsize
+    return size + (8 if rational and size != 8 else 0)
+
+
+def mib_for_every_tree(n_leaves: int, max_points: int, dtype, rational: bool, depth: int) -> float:
+    """A cache_mb that holds every patch's whole tree `depth` levels deep (a root pair and a pair of
+    halves for each node above that depth): a cache that never releases a tree."""
+    pairs = n_leaves * (2 ** depth + 1)
+    return pairs * 2 * node_bytes(max_points, point_bytes(dtype, rational)) / 2 ** 20
 
 
 def new_cache(n_leaves: int, working: int, pairs: int, depth: int) -> CacheRecord:
@@ -62,7 +77,8 @@ def new_cache(n_leaves: int, working: int, pairs: int, depth: int) -> CacheRecor
     return CacheRecord(np.full(n_leaves, -1, np.int32), np.full(nodes, -1, np.int32),
                        np.full(n_leaves, -1, np.int32), np.full(n_leaves, -1, np.int32),
                        np.arange(pairs, dtype=np.int32)[::-1].copy(), np.zeros(nodes + 2, np.int32),
-                       np.zeros(working, np.int32), np.arange(working, dtype=np.int32), state)
+                       np.zeros(working, np.int32), np.arange(working, dtype=np.int32),
+                       np.zeros(n_leaves, np.uint8), state)
 
 
 def no_cache() -> CacheRecord:
@@ -89,6 +105,7 @@ def _unlink(cache, p):
 @njit(cache=True, nogil=True, _nrt=False)
 def touch(cache, p):
     """Patch p was just searched: to the back of the queue."""
+    cache.seen[p] = 1
     if cache.state[S_TAIL] == p:
         return
     _unlink(cache, p)
@@ -169,8 +186,7 @@ class ThreadCache:
 
     def __init__(self, n_leaves: int, working: int, max_points: int, dtype, rational: bool, mib: float,
                  depth: int):
-        point_bytes = np.dtype(dtype).itemsize + (8 if rational and np.dtype(dtype) != np.float64 else 0)
-        pairs = max(1, int(mib * 2 ** 20) // (2 * node_bytes(max_points, point_bytes)))
+        pairs = max(1, int(mib * 2 ** 20) // (2 * node_bytes(max_points, point_bytes(dtype, rational))))
         slots = working + 2 * pairs
         self.buf = np.zeros((slots, 4, max_points), dtype)
         if self.buf.dtype == np.float64:
@@ -188,7 +204,16 @@ class ThreadCache:
         arrays = (self.buf, self.box, self.mf, self.mi) + ((self.buf64,) if self.buf64 is not self.buf else ())
         return sum(a.nbytes for a in arrays + tuple(self.record))
 
+    def map_pages(self) -> None:
+        """Write the zero-filled arrays once, so the system maps their memory now and not while a
+        frame is timed (np.zeros leaves that to the first write)."""
+        for a in (self.buf, self.box, self.mf, self.mi, self.buf64, self.record.evict):
+            a.fill(0)
+
     def summary(self) -> dict:
+        """Running totals (searches that found a tree, that made one; trees released), the nodes
+        held and their capacity, bytes, and the surfaces searched since `seen` was last cleared."""
         state = self.record.state
         return {"hits": int(state[S_HITS]), "misses": int(state[S_MISSES]), "nodes": int(state[S_NODES]),
-                "released": int(state[S_RELEASES]), "capacity": int(len(self.record.child)), "bytes": self.nbytes}
+                "released": int(state[S_RELEASES]), "capacity": int(len(self.record.child)), "bytes": self.nbytes,
+                "surfaces": int(np.count_nonzero(self.record.seen))}

@@ -1,4 +1,5 @@
-"""Stats panel: timing, progress, effort, and accuracy against float64 (Dammertz table 2.1)."""
+"""Stats panel: timing, progress, effort, coherence counters (Lischinski) and accuracy against float64
+(Dammertz table 2.1)."""
 from __future__ import annotations
 
 import time
@@ -40,6 +41,8 @@ def ui_stats(state) -> bool:
             if e:
                 imgui.text(f"{label}: min {e['min']:.0f}  mean {e['mean']:.1f}  max {e['max']:.0f}")
         _accel(s.get("accel"))
+        for line in coherence_lines(s.get("coherence")):
+            imgui.text(line)
     e = r.error_stats
     if e:
         imgui.separator_text(f"vs float64 reference ({r.ref_seconds:.2f} s)")
@@ -79,6 +82,24 @@ def accel_lines(a: dict) -> list:
         lines.append(f"{nx}x{ny}x{nz} cells ({a['empty_cells']} empty), {a['items']} items, "
                      f"{a['mean_items_per_full_cell']:.2f} per non-empty cell"
                      + (f", coarsened {a['coarsened']:.2f}x to fit" if a["coarsened"] > 1.0 else ""))
+    return lines
+
+
+def coherence_lines(c: dict | None) -> list:
+    """Lischinski's counters of the frame (frame_stats' "coherence"), a few lines of text."""
+    if not c:
+        return []
+    lines = [f"per ray: {c['surfaces_tested_per_ray']:.2f} surfaces box-tested, "
+             f"{c['surfaces_searched_per_ray']:.2f} searched, {c['box_tests_per_ray']:.1f} ray-box tests"]
+    cache = c.get("cache")
+    if cache:
+        ratio = c["cache_hit_ratio"]
+        per = c["cache_misses_per_surface"]
+        lines.append(f"surface-tree cache: hit ratio {'-' if ratio is None else f'{ratio:.3f}'}, "
+                     f"{'-' if per is None else f'{per:.2f}'} misses per surface searched "
+                     f"({cache['misses']} trees made for {cache['surfaces']} surfaces, {cache['released']} released)")
+        lines.append(f"  {cache['nodes']} nodes of {cache['capacity']} held, {cache['bytes'] / 2**20:.1f} MiB "
+                     f"in {cache['threads']} thread cache(s)")
     return lines
 
 
