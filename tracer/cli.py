@@ -351,7 +351,7 @@ def _add_memory_limit(parser):
 
 
 def add_commands(sub) -> None:
-    """Add render, trace and bench to an argparse subparsers object (each sets func=cmd_...)."""
+    """Add render, trace, bench and stress to an argparse subparsers object (each sets func=cmd_...)."""
     p = sub.add_parser("render", help="render a scene to a PNG, with optional per-pixel outputs")
     p.add_argument("scene", help="scene .json or .bpt file")
     p.add_argument("-o", "--output", required=True, metavar="IMG.png", help="image in the --mode display")
@@ -403,6 +403,8 @@ def add_commands(sub) -> None:
     _add_memory_limit(p)
     _add_quiet(p)
     p.set_defaults(func=cmd_bench)
+    from .cli_stress import add_stress_command  # in its own module: this one is long enough
+    add_stress_command(sub)
 
 
 def _default_scene() -> Path:
