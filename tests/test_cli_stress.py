@@ -38,6 +38,21 @@ def test_teapot_subset_table_and_json(tmp_path, capsys):
         assert 0.0 <= v["inside"] <= 1.0 and v["ratio"] is not None
         assert rows[v["name"]].split()[1:4] == [str(v["hits"]), "0", "0"]
     assert data["size"] == [16, 16] and data["options"]["criterion"] == "float"
+    grazing = data["variants"][SUBSET.index("grazing-90")]
+    assert 0 < grazing["hits"] < 16 * 16  # the silhouette crosses the image
+
+
+@pytest.mark.parametrize("azimuth", stress.AZIMUTHS)
+def test_grazing_views_touch_the_teapot_not_the_floor_edge(azimuth):
+    """The target is a point of a curved patch where the view is tangent to the surface: on the
+    teapot, not on the edge of the sample scene's floor (a plane seen edge-on)."""
+    scene = load_scene(TEAPOT)
+    view = stress.grazing_view(scene, azimuth)
+    points, normals, curved = stress.surface_samples(scene)
+    i = int(np.argmin(np.abs(points - view.look_at).sum(axis=1)))
+    along = np.subtract(view.look_at, view.eye) / np.linalg.norm(np.subtract(view.look_at, view.eye))
+    assert curved[i] and abs(float(normals[i] @ along)) < stress.TANGENT_COS
+    assert np.abs(view.look_at[:2]).max() < 4.0 and view.look_at[2] > 0.1  # the floor spans +-8 at z = 0
 
 
 def test_a_kind_selects_its_variants(capsys):

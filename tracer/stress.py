@@ -24,9 +24,9 @@ from .options import Options
 SCALES = (1e-6, 1e-3, 1e3, 1e6)
 MOVES = (1e2, 1e4, 1e6)          # offsets in every coordinate, in units of the scene's extent
 AZIMUTHS = (0.0, 90.0, 180.0, 270.0)
-GRAZING_ELEVATION = 10.0         # degrees above the horizon: away from edge-on floors
 PERTURB_ULPS = (1, 2, 3, 4)
 MAX_SAMPLES = 1_000_000          # surface points sampled to find a silhouette
+TANGENT_COS = 0.02               # |cos| between normal and view below which a sample is on the silhouette
 
 
 @dataclass(frozen=True)
@@ -96,13 +96,15 @@ def _bernstein(degree: int, ts) -> np.ndarray:
     return binom * ts[:, None] ** i * (1.0 - ts[:, None]) ** (degree - i)
 
 
-def surface_samples(scene, k: int | None = None) -> np.ndarray:
-    """(count, 3) points of every patch on a k x k parameter grid (trims ignored; k from the patch
-    count so that at most MAX_SAMPLES points are made), in float64."""
+def surface_samples(scene, k: int | None = None):
+    """(points, normals, curved), (count, 3), (count, 3), (count,): every patch on a k x k parameter
+    grid (trims ignored; k from the patch count so that at most MAX_SAMPLES points are made), in
+    float64; unit normals from differences along the grid (NaN where the grid collapses, as at a
+    pole); curved: the sample's patch is not a plane (its normals differ)."""
     n = scene.n_patches
     k = k or int(min(33, max(2, math.isqrt(MAX_SAMPLES // max(n, 1)))))
     ts = np.linspace(0.0, 1.0, k)
-    out = []
+    points, normals, curved = [], [], []
     for m, d in sorted(set(zip(scene.degree_u.tolist(), scene.degree_v.tolist()))):
         patches = np.flatnonzero((scene.degree_u == m) & (scene.degree_v == d))
         rows = scene.point_start[patches][:, None] + np.arange((m + 1) * (d + 1))
@@ -111,8 +113,17 @@ def surface_samples(scene, k: int | None = None) -> np.ndarray:
         nets = homog.reshape(len(patches), d + 1, m + 1, 4)           # [patch, j (v), i (u), xyzw]
         bu, bv = _bernstein(m, ts), _bernstein(d, ts)
         s = dot(bv, dot(bu, nets.transpose(2, 0, 1, 3)).transpose(2, 0, 1, 3))  # [v, u, patch, xyzw]
-        out.append((s[..., :3] / s[..., 3:]).reshape(-1, 3))
-    return np.concatenate(out)
+        xyz = s[..., :3] / s[..., 3:]
+        n = np.cross(np.gradient(xyz, axis=1), np.gradient(xyz, axis=0))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            n = n / np.sqrt(n[..., 0:1] ** 2 + n[..., 1:2] ** 2 + n[..., 2:3] ** 2)
+        ok = ~np.isnan(n[..., :1])
+        mean = np.where(ok, n, 0.0).sum(axis=(0, 1)) / np.maximum(ok.sum(axis=(0, 1)), 1)
+        spread = np.where(ok, np.abs(n - mean), 0.0).max(axis=(0, 1, 3))  # per patch; 0: a plane
+        points.append(xyz.reshape(-1, 3))
+        normals.append(n.reshape(-1, 3))
+        curved.append(np.broadcast_to(~(spread < 1e-9), (k, k, len(patches))).reshape(-1))
+    return np.concatenate(points), np.concatenate(normals), np.concatenate(curved)
 
 
 def silhouette_view(points, outward, along, half_width: float, distance: float) -> View:
@@ -125,15 +136,18 @@ def silhouette_view(points, outward, along, half_width: float, distance: float) 
     return View(tuple(map(float, target - distance * a)), tuple(map(float, target)), up, fov)
 
 
-def grazing_view(scene, azimuth_deg: float, points=None) -> View:
-    """The silhouette on the right of a view from `azimuth_deg` (about z), GRAZING_ELEVATION above
-    the horizon, five extents away, 1/128 of the extent wide."""
-    az, el = math.radians(azimuth_deg), math.radians(GRAZING_ELEVATION)
-    along = np.array([-math.cos(az) * math.cos(el), -math.sin(az) * math.cos(el), -math.sin(el)])
-    outward = np.array([math.sin(az), -math.cos(az), 0.0])   # the image's right: along x z
+def grazing_view(scene, azimuth_deg: float) -> View:
+    """A horizontal view from `azimuth_deg` (about z), five extents away and 1/128 of the extent
+    wide, of the rightmost silhouette point: a sample of a curved patch whose normal is within
+    TANGENT_COS of perpendicular to the view (any sample if there is none). A plane seen edge-on
+    (a floor) has edges there, not points where the rays touch the surface."""
+    az = math.radians(azimuth_deg)
+    along = np.array([-math.cos(az), -math.sin(az), 0.0])
+    outward = np.array([-math.sin(az), math.cos(az), 0.0])   # the image's right
+    points, normals, curved = surface_samples(scene)
+    tangent = curved & (np.abs(dot(normals, along)) < TANGENT_COS)  # NaN normals compare False
     size = extent(scene)
-    points = surface_samples(scene) if points is None else points
-    return silhouette_view(points, outward, along, size / 128, 5 * size)
+    return silhouette_view(points[tangent] if tangent.any() else points, outward, along, size / 128, 5 * size)
 
 
 def variant_scene(scene, variant: Variant, view: View):
@@ -250,7 +264,7 @@ def row(r: Result) -> str:
     # a warning reads "file: coordinates ...: what: remedy"; the table keeps the what
     note = "; ".join(("HOLES/FALSE HITS",) * r.failed + tuple((w.split(": ") + [w] * 3)[2] for w in r.warnings))
     return (f"{r.variant.name:<14} {s.hits:6d} {s.holes:5d} {s.false_hits:5d} {s.unresolved:5d} "
-            f"{s.ratio:9.2f} {100 * s.inside:8.4f}% {r.seconds:7.3f} {r.reference_seconds:7.3f}  {note}").rstrip()
+            f"{s.ratio:9.3g} {100 * s.inside:8.4f}% {r.seconds:7.3f} {r.reference_seconds:7.3f}  {note}").rstrip()
 
 
 def table(results) -> str:
