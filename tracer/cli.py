@@ -1,4 +1,4 @@
-"""The tracer's commands of the `psrt` command line: render, trace, bench.
+"""The tracer's commands of the `psrt` command line: render, trace, bench, stress (cli_stress.py).
 
 `add_commands` adds them to the subparsers of psrt/cli.py, which adds the viewer's
 `view` beside them and runs the chosen command. Tracer option flags are generated
