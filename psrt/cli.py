@@ -1,4 +1,4 @@
-"""The `psrt` console script: render, trace, bench (tracer/cli.py) and view (viewer/cli_view.py).
+"""The `psrt` console script: render, trace, bench, stress (tracer/cli.py) and view (viewer/cli_view.py).
 
 This is the one module that knows both packages: tracer/ never imports viewer/, and the
 viewer's `view` command adds its flags without loading glfw or OpenGL (the window starts

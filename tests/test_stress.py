@@ -9,7 +9,9 @@ Targets (issue 2), per scene, against `render.reference_frame` (float64, `float`
 the same rays): zero holes, zero false hits, mean L1 position error <= 10x (aim, held here: 2x) the float32
 rounding floor (the mean L1 error of rounding the reference positions to float32), and
 >= 99.99 % of the reference positions inside the float32 hit box widened by 4 float32 ulps per
-coordinate (ulp of max(|lo|, |hi|), the kernel's measure) -- with these image sizes: all.
+coordinate (the float32 spacing at each bound: stats.error_stats' inside_4ulp) -- with these image
+sizes: all. Scored by tracer.stress.score, as `psrt stress` scores a user's scene; pixels the
+reference could not resolve within its box budget, which the scoring leaves out, fail the first test.
 
 `python tests/scenes.py` prints the per-scene table.
 """

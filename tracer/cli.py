@@ -1,4 +1,4 @@
-"""The tracer's commands of the `psrt` command line: render, trace, bench.
+"""The tracer's commands of the `psrt` command line: render, trace, bench, stress (cli_stress.py).
 
 `add_commands` adds them to the subparsers of psrt/cli.py, which adds the viewer's
 `view` beside them and runs the chosen command. Tracer option flags are generated
@@ -252,7 +252,7 @@ def _add_memory_limit(parser):
 
 
 def add_commands(sub) -> None:
-    """Add render, trace and bench to an argparse subparsers object (each sets func=cmd_...)."""
+    """Add render, trace, bench and stress to an argparse subparsers object (each sets func=cmd_...)."""
     p = sub.add_parser("render", help="render a scene to a PNG, with optional per-pixel outputs")
     p.add_argument("scene", help="scene .json or .bpt file")
     p.add_argument("-o", "--output", required=True, metavar="IMG.png", help="image in the --mode display")
@@ -307,6 +307,8 @@ def add_commands(sub) -> None:
     _add_memory_limit(p)
     _add_quiet(p)
     p.set_defaults(func=cmd_bench)
+    from .cli_stress import add_stress_command  # in its own module: this one is long enough
+    add_stress_command(sub)
 
 
 def _default_scene() -> Path:
