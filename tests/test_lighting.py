@@ -282,3 +282,15 @@ def test_schlick_fresnel_and_total_internal_reflection():
     assert f[0] == pytest.approx(0.04) and f[1] == pytest.approx(1.0) and f[2] == pytest.approx(0.04)
     assert f[3] == 1.0  # from glass at 60 degrees: past the critical angle (41.8 degrees)
     assert f[4] == 0.0  # no change of index, straight on: nothing reflected
+
+
+def test_bench_penumbra_sweep_prints_the_table(capsys, tmp_path):
+    from psrt.cli import main
+    out = tmp_path / "sweep.json"
+    assert main(["bench", "--penumbra-sweep", "--size", "16x16", "--runs", "1", "-q", "--json", str(out)]) == 0
+    table = capsys.readouterr().out
+    assert table.count(" yes") == 4 and "the scene's own light" in table
+    import json
+    rows = json.loads(out.read_text())["rows"]
+    assert [r["radius"] for r in rows] == [0.02, 0.05, 0.1, 0.2] and all(r["identical"] for r in rows)
+    assert main(["bench", "--penumbra-sweep", "--scene", str(tmp_path / "none.json")]) == 2

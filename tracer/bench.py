@@ -40,14 +40,14 @@ def run_bench(scene, base: Options = Options(), *, size=(512, 512), runs: int = 
         for criterion in criteria:
             for split in splits:
                 opts = base.with_(criterion=criterion, split=split, precision=precision)
-                frame = render(scene, opts, size=size, geometry=geom)  # warm-up (and compile)
+                frame = render(scene, opts, size=size, geometry=geom, lighting=False)  # warm-up, compile
                 if ref is None:
                     ref = reference_frame(scene, frame, geometry=geom64)
                     refs[precision] = {"seconds": ref.seconds, "hits": int(ref.hit.sum())}
                 times = []
                 for _ in range(runs):
                     start = time.perf_counter()
-                    frame = render(scene, opts, size=size, geometry=geom)
+                    frame = render(scene, opts, size=size, geometry=geom, lighting=False)
                     times.append(time.perf_counter() - start)
                 row = _row(opts, frame, ref, times)
                 rows.append(row)

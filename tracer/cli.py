@@ -215,6 +215,9 @@ def cmd_bench(args) -> int:
     if args.coherence:
         from .cli_coherence import cmd_bench_coherence
         return cmd_bench_coherence(args)
+    if args.penumbra_sweep:
+        from .cli_coherence import cmd_bench_penumbra
+        return cmd_bench_penumbra(args)
     if args.scenes or args.tables:
         raise ValueError(f"{'--scenes' if args.scenes else '--tables'}: only with --coherence")
     args.scene = args.scene or str(_default_scene())
@@ -289,7 +292,7 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_trace)
 
     p = sub.add_parser("bench", help="time and check every criterion x split x precision (--coherence: the "
-                       "coherence options)")
+                       "coherence options; --penumbra-sweep: the fast penumbra against light size)")
     p.add_argument("--scene", help="scene (default: sample_models/teapot.json)")
     p.add_argument("--size", type=parse_size, help="image size WxH (default: 512x512; --coherence 256x256)")
     p.add_argument("--runs", type=positive_int, help="timed runs per configuration after one warm-up "

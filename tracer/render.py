@@ -347,11 +347,12 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
 
 
 def render(scene, opts: Options = Options(), *, size=None, view: View | None = None,
-           geometry: Geometry | None = None, **kwargs) -> Frame:
+           geometry: Geometry | None = None, lighting: bool = True, **kwargs) -> Frame:
     """Render a loaded scene's primary rays with the given options.
 
     size: (width, height), else the scene's image size, else 512x512.
     geometry: a prepared Geometry of the same precision, to skip preparation.
+    lighting: shade with secondary rays (trace_rays' scene); False: primary rays alone.
     """
     width, height = size or scene.image_size or (512, 512)
     view = view or view_of(scene)
@@ -359,7 +360,8 @@ def render(scene, opts: Options = Options(), *, size=None, view: View | None = N
     if geom.precision != opts.precision:
         raise ValueError(f"geometry is {geom.precision}, options ask for {opts.precision}")
     origins, dirs = primary_rays(view, width, height, opts.precision)
-    return trace_rays(geom, opts, origins, dirs, view.pixel_angle(height), view=view, scene=scene, **kwargs)
+    return trace_rays(geom, opts, origins, dirs, view.pixel_angle(height), view=view,
+                      scene=scene if lighting else None, **kwargs)
 
 
 # The reference's box budget per ray: this many times the boxes the frame's own ray computed (at
