@@ -36,7 +36,9 @@ def cmd_stress(args) -> int:
             def step(result):
                 bar.set_postfix_str(result.variant.name)
                 bar.update(1)
-            results = stress.run(scene, chosen, args.size, opts, progress=step)
+            from .distributed import open_client
+            with open_client(args.scheduler, args.workers) as client:
+                results = stress.run(scene, chosen, args.size, opts, progress=step, client=client)
         failed = [r.variant.name for r in results if r.failed]
         if args.json:
             cli._write_json(outs, {"scene": str(args.scene), "size": list(args.size), "options": asdict(opts),
@@ -57,6 +59,7 @@ def add_stress_command(sub) -> None:
     p.add_argument("--json", metavar="OUT", help="write every variant's score as JSON ('-': stdout)")
     p.add_argument("--variants", nargs="+", type=parse_variant, metavar="V",
                    help=f"variants or kinds to run (default: all of {names})")
+    cli.add_scheduler_flags(p, default="none")
     cli.add_option_flags(p)
     cli._add_quiet(p)
     cli._add_strict(p)
