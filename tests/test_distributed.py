@@ -67,9 +67,10 @@ def test_a_dead_workers_task_is_rerun(client, tmp_path):
 
 def test_stress_scores_on_the_cluster_equal_local(client):
     scene = load_scene(TEAPOT)
-    chosen = stress.select(["as-is", "scale-1e3", "grazing-90", "ulps-1"])
+    chosen = stress.select(["as-is", "scale-1e3", "move-1e6", "grazing-90", "ulps-1"])  # move-1e6 warns
     here = stress.run(scene, chosen, (16, 16))
     there = stress.run(scene, chosen, (16, 16), client=client)
+    assert here[2].warnings and here[2].warnings[0].startswith(TEAPOT)  # the path as given, not the worker's
     assert [(r.variant, r.score, r.refused, r.warnings) for r in here] == \
            [(r.variant, r.score, r.refused, r.warnings) for r in there]
 

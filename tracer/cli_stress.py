@@ -59,7 +59,7 @@ def add_stress_command(sub) -> None:
     p.add_argument("--json", metavar="OUT", help="write every variant's score as JSON ('-': stdout)")
     p.add_argument("--variants", nargs="+", type=parse_variant, metavar="V",
                    help=f"variants or kinds to run (default: all of {names})")
-    cli.add_scheduler_flags(p, default="none")
+    cli.add_scheduler_flags(p, default="local")
     cli.add_option_flags(p)
     cli._add_quiet(p)
     cli._add_strict(p)

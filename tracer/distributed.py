@@ -141,15 +141,18 @@ def _token(fn, item) -> str:
 _SCENES: dict = {}
 
 
-def loaded_scene(path: str):
-    """The scene at `path`, loaded once per process while the file is unchanged (keyed by its
-    modification time and size): a worker's tasks of one run share it."""
+def loaded_scene(path: str, label: str | None = None):
+    """The scene at `path` (absolute: a worker's directory is not the client's), loaded once per
+    process while the file is unchanged (keyed by its modification time and size), its path
+    reading `label` as the client's does (messages name the file as the user gave it)."""
+    import dataclasses
     from .scene import load_scene
     st = os.stat(path)
-    key = (os.path.abspath(path), st.st_mtime_ns, st.st_size)
+    key = (path, label, st.st_mtime_ns, st.st_size)
     if key not in _SCENES:
         _SCENES.clear()  # one scene at a time: runs follow each other on a long-lived worker
-        _SCENES[key] = load_scene(path)
+        scene = load_scene(path)
+        _SCENES[key] = scene if label is None else dataclasses.replace(scene, path=label)
     return _SCENES[key]
 
 

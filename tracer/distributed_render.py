@@ -37,10 +37,10 @@ def prepared(scene, precision: str):
 
 
 def trace_group(item):
-    """One task: (scene path, options, (width, height), unit indices) -> (pixels (k, 2) int32,
+    """One task: ((scene's absolute path, its path as given), options, (width, height), unit indices) -> (pixels (k, 2) int32,
     {channel: values at those pixels}, the frame's kernel variant and aggregate report)."""
-    path, opts, (width, height), indices = item
-    scene = loaded_scene(path)
+    where, opts, (width, height), indices = item
+    scene = loaded_scene(*where)
     geom = prepared(scene, opts.precision)
     view = view_of(scene)
     opts = opts.with_(threads=worker_threads(opts.threads))
@@ -70,7 +70,7 @@ def render_distributed(client, scene, opts: Options = Options(), *, size=None, p
     origins, dirs = primary_rays(view, width, height, opts.precision)
     threads = sum(client.nthreads().values()) or 1
     units = unit_count(width, height, opts)
-    items = [(os.path.abspath(scene.path), opts, (width, height), g)
+    items = [((os.path.abspath(scene.path), str(scene.path)), opts, (width, height), g)
              for g in groups(units, UNITS_PER_TASK_SHARE * threads)]
     frame = Frame.empty(origins, dirs)
     frame.add_lighting(opts.shadows)

@@ -246,7 +246,8 @@ def run(scene, chosen, size, opts: Options = Options(), progress=None, client=No
     path and run one variant per task; None: here, one after another."""
     from .distributed import map_items
     import os
-    items = [(os.path.abspath(scene.path), variant, tuple(size), opts) for variant in chosen]
+    where = (os.path.abspath(scene.path), str(scene.path))
+    items = [(where, variant, tuple(size), opts) for variant in chosen]
     if client is None:  # the scene is loaded already
         view = view_of(scene)
         items = [(scene, variant, size, opts, view) for _, variant, size, opts in items]
@@ -255,12 +256,13 @@ def run(scene, chosen, size, opts: Options = Options(), progress=None, client=No
 
 
 def variant_item(item) -> Result:
-    """One work item of `run`: (scene or its path, variant, size, options[, view])."""
+    """One work item of `run`: (scene or (its absolute path, its path as given), variant, size,
+    options[, view])."""
     from .distributed import loaded_scene
     from .distributed import worker_threads
     scene, variant, size, opts, *view = item
     opts = opts.with_(threads=worker_threads(opts.threads))
-    return run_variant(loaded_scene(scene) if isinstance(scene, str) else scene, variant, size, opts, *view)
+    return run_variant(loaded_scene(*scene) if isinstance(scene, tuple) else scene, variant, size, opts, *view)
 
 
 # ---- the table ----------------------------------------------------------------------------
