@@ -77,7 +77,7 @@ def test_stress_scores_on_the_cluster_equal_local(client):
 
 def test_render_on_the_scheduler_is_bit_identical(client, tmp_path):
     local, remote = tmp_path / "local.npz", tmp_path / "remote.npz"
-    common = ["render", TEAPOT, "--size", "24x16", "-q"]
+    common = ["render", TEAPOT, "--size", "24x16", "--tile-size", "8", "-q"]  # 6 tiles: tasks on both workers
     assert main(common + ["-o", str(tmp_path / "l.png"), "--aov", str(local)]) == 0
     assert main(common + ["-o", str(tmp_path / "r.png"), "--aov", str(remote), "--scheduler", client.scheduler.address]) == 0
     a, b = np.load(local), np.load(remote)

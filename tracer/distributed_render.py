@@ -52,7 +52,19 @@ def trace_group(item):
     rows, cols = pixels[:, 0], pixels[:, 1]
     channels = {name: getattr(frame, name)[rows, cols] for name in CHANNEL_NAMES + tuple(LIGHTING_CHANNELS)
                 if getattr(frame, name) is not None}
-    return pixels, channels, {k: frame.extras[k] for k in ("variant", "accel") if k in frame.extras}
+    return pixels, channels, {k: frame.extras[k] for k in ("variant", "accel", "lighting") if k in frame.extras}
+
+
+def merged_lighting(reports: list) -> dict:
+    """The tasks' lighting reports (lighting.Lighting.report) as one: seconds and counts summed over
+    the tasks, the expanded data sets' builds of the first (each worker builds the same ones)."""
+    seconds = {}
+    for r in reports:
+        for k, v in r["seconds"].items():
+            seconds[k] = round(seconds.get(k, 0.0) + v, 4)
+    return {"seconds": seconds, "centre_rays": sum(r["centre_rays"] for r in reports),
+            "trivially_decided": sum(r["trivially_decided"] for r in reports),
+            "expanded_sets": reports[0]["expanded_sets"]}
 
 
 def groups(count: int, parts: int) -> list:
@@ -86,6 +98,9 @@ def render_distributed(client, scene, opts: Options = Options(), *, size=None, p
         for name, values in channels.items():
             getattr(frame, name)[pixels[:, 0], pixels[:, 1]] = values
         frame.extras.update(extras)
+    lighting = [extras["lighting"] for _, _, extras in results if "lighting" in extras]
+    if lighting:
+        frame.extras["lighting"] = merged_lighting(lighting)
     frame.tiles_done = frame.tiles_total = units
     frame.extras.update(order=opts.order, tile_size=opts.tile_size, view=view)
     return frame
