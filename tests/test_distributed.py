@@ -97,3 +97,13 @@ def test_bad_scheduler_is_one_line_and_exit_2(address, needle, tmp_path, capsys)
     err = capsys.readouterr().err
     assert needle in err and len(err.strip().splitlines()) == 1
     assert time.monotonic() - start < distributed.CONNECT_TIMEOUT + 60  # bounded, generously under load
+
+
+def test_a_scheduler_without_workers_is_refused_not_waited_on(tmp_path, capsys, monkeypatch):
+    from distributed import LocalCluster
+    monkeypatch.setattr(distributed, "CONNECT_TIMEOUT", 2.0)
+    with LocalCluster(n_workers=0, processes=False, protocol="tcp", dashboard_address=":0") as empty:
+        assert main(["render", TEAPOT, "--size", "8x8", "-q", "-o", str(tmp_path / "x.png"),
+                     "--scheduler", empty.scheduler_address]) == 2
+    err = capsys.readouterr().err
+    assert "has no workers" in err and len(err.strip().splitlines()) == 1

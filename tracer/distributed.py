@@ -66,7 +66,8 @@ def worker_env() -> dict:
 @contextlib.contextmanager
 def open_client(scheduler: str | None, workers: int | None = None):
     """A Client for `scheduler` (see the module's docstring), closed (with its cluster) on exit; None
-    for 'none' or None. A scheduler that cannot be reached within CONNECT_TIMEOUT is a ValueError."""
+    for 'none' or None. A scheduler that cannot be reached, or has no worker, within CONNECT_TIMEOUT
+    each is a ValueError."""
     if scheduler in (None, "none"):
         yield None
         return
@@ -86,6 +87,11 @@ def open_client(scheduler: str | None, workers: int | None = None):
         raise ValueError(f"--scheduler: no Dask scheduler reachable at {address} within "
                          f"{CONNECT_TIMEOUT:g} s ({type(e).__name__})") from None
     with client:
+        try:  # a scheduler without workers would leave the run waiting for ever
+            client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
+        except TimeoutError:
+            raise ValueError(f"--scheduler: the Dask scheduler at {address} has no workers (start some with "
+                             f"`dask worker {address}`)") from None
         yield client
 
 
