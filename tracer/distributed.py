@@ -95,6 +95,14 @@ def open_client(scheduler: str | None, workers: int | None = None):
         yield client
 
 
+def describe(client) -> str:
+    """Where the work runs, for a summary line: 'in this process', 'on 2 Dask workers (tcp://...)'."""
+    if client is None:
+        return "in this process"
+    threads = client.nthreads()
+    return f"on {len(threads)} Dask workers, {sum(threads.values())} threads ({client.scheduler.address})"
+
+
 def timed_resources(client) -> dict | None:
     """The task resources that keep timed items one per worker: {'timed': 1} when every worker
     offers it; None when every worker has one thread anyway; else ValueError saying how to start them."""
