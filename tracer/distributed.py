@@ -130,7 +130,7 @@ def map_items(fn, items, client=None, progress=None, timed=False) -> list:
     from distributed import as_completed
     resources = timed_resources(client) if timed else None
     futures = [client.submit(run_timed if timed else fn, *((fn, item) if timed else (item,)), pure=True,
-                             resources=resources, key=f"psrt-{i}-{_token(fn, item)}")
+                             resources=resources, key=f"psrt-{i}-{_token(fn, item, timed)}")
                for i, item in enumerate(items)]
     index = {f.key: i for i, f in enumerate(futures)}
     out = [None] * len(items)
@@ -145,9 +145,10 @@ def map_items(fn, items, client=None, progress=None, timed=False) -> list:
     return out
 
 
-def _token(fn, item) -> str:
+def _token(fn, item, timed: bool) -> str:
+    """A task's key from what it computes: the same item twice is one task (pure), timed or not two."""
     from dask.base import tokenize
-    return tokenize(fn.__module__, fn.__qualname__, item)
+    return tokenize(fn.__module__, fn.__qualname__, item, timed)
 
 
 # ---- what a worker keeps between tasks -------------------------------------------------------
