@@ -127,7 +127,7 @@ def _import_losses(args, scene) -> None:
 # ---- commands ---------------------------------------------------------------------
 
 def cmd_render(args) -> int:
-    from .render import reference_frame, render, unit_count
+    from .render import reference_frame, unit_count
     from .shade import shade, to_png
     from .stats import channel_image, error_stats, frame_stats
 
@@ -145,8 +145,7 @@ def cmd_render(args) -> int:
         needs_ref = bool(args.error_map or args.stats or any(CHANNELS[name].needs_reference for name in maps))
         memory.check_render(width, height, reference=needs_ref, limit=args.memory_limit)
         with _bar(unit_count(width, height, opts), "render", args.quiet) as bar:
-            frame = render(scene, opts, size=(width, height), progress=bar.update,
-                           on_compile=_compile_note(args, bar), on_build=_build_note(args, bar))
+            frame = _render(args, scene, opts, (width, height), bar)
         outs.write(args.output, lambda f: to_png(shade(frame, scene, opts.mode), f))
         if args.aov:
             outs.write(args.aov, frame.save_npz)
@@ -172,6 +171,18 @@ def cmd_render(args) -> int:
     _say(args, f"{args.output}: {width}x{height}, {fs['hits']} hits of {fs['rays']} rays in "
                f"{fs['time']:.3f} s{_accel_summary(fs.get('accel'))}, mean effort {fs['effort']['mean']:.1f} box tests/ray")
     return 0
+
+
+def _render(args, scene, opts, size, bar):
+    """The frame, traced here or on the Dask workers of --scheduler (tracer/distributed_render.py)."""
+    if args.scheduler == "none":
+        from .render import render
+        return render(scene, opts, size=size, progress=bar.update, on_compile=_compile_note(args, bar),
+                      on_build=_build_note(args, bar))
+    from .distributed import open_client
+    from .distributed_render import render_distributed
+    with open_client(args.scheduler, args.workers) as client:
+        return render_distributed(client, scene, opts, size=size, progress=bar.update)
 
 
 def cmd_trace(args) -> int:
@@ -254,6 +265,16 @@ def _add_memory_limit(parser):
                              f"(default: ${memory.ENV}, else {memory.DEFAULT_FRACTION * 100:.0f}%% of physical memory)")
 
 
+def add_scheduler_flags(parser, default: str) -> None:
+    """--scheduler and --workers (tracer/distributed.py)."""
+    parser.add_argument("--scheduler", default=default, metavar="ADDRESS",
+                        help="run the work units on the Dask scheduler at ADDRESS (tcp://host:8786), on a "
+                             "LocalCluster started for the run ('local'), or in this process ('none'; "
+                             f"default: {default})")
+    parser.add_argument("--workers", type=positive_int, metavar="N",
+                        help="worker processes of --scheduler local (default: one per core)")
+
+
 def add_commands(sub) -> None:
     """Add render, trace, bench and stress to an argparse subparsers object (each sets func=cmd_...)."""
     p = sub.add_parser("render", help="render a scene to a PNG, with optional per-pixel outputs")
@@ -271,6 +292,7 @@ def add_commands(sub) -> None:
     p.add_argument("--stats", metavar="JSON", help="rays, hits, time, effort and error statistics, the kernel "
                    "variants compiled and their compile times, the acceleration structure's build time and size "
                    "(computes the float64 reference)")
+    add_scheduler_flags(p, default="none")
     add_option_flags(p)
     _add_memory_limit(p)
     _add_quiet(p)

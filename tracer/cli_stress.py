@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from dataclasses import asdict
 
 from . import cli, stress
@@ -36,12 +37,19 @@ def cmd_stress(args) -> int:
             def step(result):
                 bar.set_postfix_str(result.variant.name)
                 bar.update(1)
-            results = stress.run(scene, chosen, args.size, opts, progress=step)
+            from .distributed import describe, open_client
+            start = time.perf_counter()
+            with open_client(args.scheduler, args.workers) as client:
+                where = describe(client)
+                results = stress.run(scene, chosen, args.size, opts, progress=step, client=client)
+            wall = time.perf_counter() - start  # with the cluster's start and stop: what the user waits
         failed = [r.variant.name for r in results if r.failed]
         if args.json:
             cli._write_json(outs, {"scene": str(args.scene), "size": list(args.size), "options": asdict(opts),
-                                   "variants": [r.to_json() for r in results], "failed": failed}, args.json)
+                                   "variants": [r.to_json() for r in results], "failed": failed,
+                                   "wall_seconds": wall}, args.json)
     print(stress.table(results), file=sys.stderr if args.json == cli.STDOUT else sys.stdout)  # JSON owns stdout
+    cli._say(args, f"psrt stress: {len(results)} variants in {wall:.2f} s {where}")
     if failed:
         print(f"psrt stress: holes or false hits in {', '.join(failed)}", file=sys.stderr)
     return 1 if failed else 0
@@ -57,6 +65,7 @@ def add_stress_command(sub) -> None:
     p.add_argument("--json", metavar="OUT", help="write every variant's score as JSON ('-': stdout)")
     p.add_argument("--variants", nargs="+", type=parse_variant, metavar="V",
                    help=f"variants or kinds to run (default: all of {names})")
+    cli.add_scheduler_flags(p, default="local")
     cli.add_option_flags(p)
     cli._add_quiet(p)
     cli._add_strict(p)

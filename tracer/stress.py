@@ -240,15 +240,29 @@ def run_variant(scene, variant: Variant, size, opts: Options = Options(), view: 
     return Result(variant, score(frame, ref), None, warnings, frame.seconds, ref.seconds)
 
 
-def run(scene, chosen, size, opts: Options = Options(), progress=None) -> list:
-    """Results of the chosen variants; progress(result) after each."""
-    view = view_of(scene)
-    out = []
-    for variant in chosen:
-        out.append(run_variant(scene, variant, size, opts, view))
-        if progress is not None:
-            progress(out[-1])
-    return out
+def run(scene, chosen, size, opts: Options = Options(), progress=None, client=None) -> list:
+    """Results of the chosen variants, in their order; progress(result) after each. client: a
+    dask.distributed Client (tracer/distributed.py) whose workers each load the scene from its
+    path and run one variant per task; None: here, one after another."""
+    from .distributed import map_items
+    import os
+    where = (os.path.abspath(scene.path), str(scene.path))
+    items = [(where, variant, tuple(size), opts) for variant in chosen]
+    if client is None:  # the scene is loaded already
+        view = view_of(scene)
+        items = [(scene, variant, size, opts, view) for _, variant, size, opts in items]
+    step = None if progress is None else (lambda i, result: progress(result))
+    return map_items(variant_item, items, client, progress=step)
+
+
+def variant_item(item) -> Result:
+    """One work item of `run`: (scene or (its absolute path, its path as given), variant, size,
+    options[, view])."""
+    from .distributed import loaded_scene
+    from .distributed import worker_threads
+    scene, variant, size, opts, *view = item
+    opts = opts.with_(threads=worker_threads(opts.threads))
+    return run_variant(loaded_scene(*scene) if isinstance(scene, tuple) else scene, variant, size, opts, *view)
 
 
 # ---- the table ----------------------------------------------------------------------------
