@@ -1,0 +1,83 @@
+"""`psrt study SCENE` (tracer/study.py, study_truth.py, study_report.py, cli_study.py): the Newton
+truth against a hand-made patch, scoring, the outputs and bad input. Images are 12x12; no timing
+is asserted."""
+import json
+import math
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from psrt.cli import main
+from tracer import study
+from tracer.study_report import markdown, series_points
+from tracer.study_truth import newton, surface_and_partials
+
+TEAPOT = str(Path(__file__).resolve().parents[1] / "sample_models" / "teapot.json")
+
+
+def saddle_grid():
+    """One bicubic grid (1, 4, 4, 4) of z = (x - 1.5)(y - 1.5) / 4 over [0, 3]^2 (exact in the Bernstein
+    basis: a bilinear function degree-elevated), weights 1."""
+    g = np.zeros((1, 4, 4, 4))
+    for i in range(4):
+        for j in range(4):
+            g[0, i, j] = (i, j, (i - 1.5) * (j - 1.5) / 4, 1.0)
+    return g
+
+
+def test_partials_match_differences():
+    g = saddle_grid()
+    g[0, 1, 2, :] *= 2.0   # a weight of 2: rational
+    u, v, h = np.array([0.3]), np.array([0.6]), 1e-6
+    s, su, sv = surface_and_partials(g, u, v)
+    diff_u = (surface_and_partials(g, u + h, v)[0] - surface_and_partials(g, u - h, v)[0]) / (2 * h)
+    diff_v = (surface_and_partials(g, u, v + h)[0] - surface_and_partials(g, u, v - h)[0]) / (2 * h)
+    assert np.allclose(su, diff_u, atol=1e-7) and np.allclose(sv, diff_v, atol=1e-7)  # central differences
+
+
+def test_newton_finds_the_saddle_point_exactly():
+    g = saddle_grid()
+    x, y = 1.1, 2.2                      # u = x / 3, v = y / 3 on this grid
+    z = (x - 1.5) * (y - 1.5) / 4
+    origin, direction = np.array([[x, y, 5.0]]), np.array([[0.0, 0.0, -1.0]])
+    u, v, t, point, residual = newton(g, np.array([0.4]), np.array([0.7]), np.array([4.0]), origin, direction)
+    assert math.isclose(u[0], x / 3, abs_tol=1e-14) and math.isclose(v[0], y / 3, abs_tol=1e-14)
+    assert math.isclose(point[0, 2], z, abs_tol=1e-14) and residual[0] < 1e-14
+
+
+def test_score_counts_holes_false_hits_wrong_surfaces():
+    ref = SimpleNamespace(hit=np.array([[True, True, True, False]]), patch=np.array([[0, 1, 2, -1]]),
+                          ray_origin=np.zeros((1, 4, 3)), ray_dir=np.ones((1, 4, 3)), t=np.ones((1, 4)))
+    truth = study.Truth(ref, np.zeros((1, 4, 3)), np.array([[True, True, True, False]]), 2.0)
+    position = np.zeros((1, 4, 3))
+    position[0, 1] = (0.5, 0.0, -0.5)     # L1 error 1, over size 2
+    s = study.score(np.array([[False, True, True, True]]), position, np.array([[-1, 1, 5, 0]]),
+                    position - 0.1, position + 0.1, truth)
+    assert (s.holes, s.false_hits, s.wrong_surface, s.compared) == (1, 1, 1, 2)
+    assert math.isclose(s.mean_error, 0.25) and math.isclose(s.max_error, 0.5)
+    assert s.inside == 0.5                # the displaced point's box misses the truth
+
+
+def test_cli_outputs_on_the_teapot(tmp_path, capsys):
+    out, md, png = tmp_path / "s.json", tmp_path / "s.md", tmp_path / "s.png"
+    assert main(["study", TEAPOT, "--size", "12x12", "--precisions", "f32", "--no-coherence", "--json", str(out),
+                 "--markdown", str(md), "--chart", str(png), "-q"]) == 0
+    data = json.loads(out.read_text())
+    names = {p["series"] for p in data["points"]}
+    assert names == {"psrt float f32", "psrt fixed f32", "psrt adaptive f32", "psrt mantissa f32"}
+    assert len(data["points"]) == 1 + len(study.FIXED_FRACTIONS) + len(study.PIXEL_FRACTIONS) + len(study.MANTISSA_ULPS)
+    assert 0 < data["truth_accepted"] <= data["reference_hits"] and data["float32_floor"] > 0
+    best = next(p for p in data["points"] if p["series"] == "psrt float f32")
+    assert best["holes"] == 0 and best["false_hits"] == 0 and best["mean_error"] < 4 * data["float32_floor"]
+    assert md.read_text() == capsys.readouterr().out.rstrip("\n") + "\n" == markdown(data)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert set(series_points(data)) == names
+
+
+def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
+    assert main(["study", str(tmp_path / "missing.json"), "--size", "8x8", "-q"]) == 2
+    assert main(["study", TEAPOT, "--size", "0x8", "-q"]) == 2
+    assert main(["study", TEAPOT, "--chart", str(tmp_path / "no" / "dir" / "c.png"), "-q"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 3 and all(line.startswith("psrt study: error: ") for line in lines)

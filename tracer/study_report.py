@@ -1,0 +1,70 @@
+"""The study's outputs (tracer/study.py): a Markdown table and a log-log chart of time against error,
+in the form of Dammertz's table 2.9, with the float32 rounding floor drawn as a vertical line."""
+from __future__ import annotations
+
+import io
+
+
+def _fmt(x, spec=".3g") -> str:
+    return "—" if x is None else format(x, spec)
+
+
+def _parameter(row) -> str:
+    p = row["parameter"]
+    if p is None:
+        return ""
+    crit = row["series"].split()[1]
+    return {"fixed": f"{p:g} of size", "adaptive": f"{p:g} px", "mantissa": f"{int(p)} ulps"}.get(crit, f"{p:g}")
+
+
+def markdown(result: dict) -> str:
+    """The study as a Markdown table, one row per point, series in order; a header of the run's figures."""
+    lines = [f"Rays {result['rays']} ({result['size'][0]}x{result['size'][1]}), reference hits "
+             f"{result['reference_hits']}, truth accepted at {result['truth_accepted']}; errors are L1 / scene "
+             f"size ({result['scene_size']:.4g}); float32 floor {result['float32_floor']:.3g}; time: "
+             f"{result['timing']}, median of {result['runs']}.", "",
+             "| series | parameter | time s | mean error | max error | holes | false hits | wrong surface "
+             "| truth in box |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in result["points"]:
+        inside = "—" if r["inside"] is None else f"{100 * r['inside']:.2f}%"
+        lines.append(f"| {r['series']} | {_parameter(r)} | {r['seconds']:.4f} | {_fmt(r['mean_error'])} | "
+                     f"{_fmt(r['max_error'])} | {r['holes']} | {r['false_hits']} | {r['wrong_surface']} | {inside} |")
+    return "\n".join(lines) + "\n"
+
+
+def series_points(result: dict) -> dict:
+    """{series: [(mean error, seconds), ...]} in sweep order, points without an error left out."""
+    out = {}
+    for r in result["points"]:
+        if r["mean_error"] is not None and r["mean_error"] > 0:
+            out.setdefault(r["series"], []).append((r["mean_error"], r["seconds"]))
+    return out
+
+
+def chart_png(result: dict) -> bytes:
+    """The log-log chart of time against mean error, one labelled line per series, as PNG bytes."""
+    import matplotlib
+    matplotlib.use("Agg")  # no display needed
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(9, 6), dpi=100)
+    for name, pts in series_points(result).items():
+        err, sec = zip(*pts)
+        style = "--" if "8x8" in name else "-"
+        ax.plot(err, [max(s, 1e-6) for s in sec], style, marker="o" if len(pts) > 1 else "*",
+                markersize=4 if len(pts) > 1 else 10, label=name)
+    floor = result["float32_floor"]
+    if floor > 0:
+        ax.axvline(floor, color="black", linestyle=":", label=f"float32 floor {floor:.2g}")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("mean L1 position error / scene size")
+    ax.set_ylabel("time, s")
+    ax.set_title(f"Run time against error, {result['size'][0]}x{result['size'][1]} (Dammertz table 2.9)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    plt.close(fig)
+    return buf.getvalue()
