@@ -11,6 +11,8 @@ import numpy as np
 from psrt.cli import main
 from tracer import study
 from tracer.study_report import markdown, series_points
+from tracer.scene import load_scene
+from tracer.study_peers import tessellate
 from tracer.study_truth import newton, surface_and_partials
 
 TEAPOT = str(Path(__file__).resolve().parents[1] / "sample_models" / "teapot.json")
@@ -62,17 +64,34 @@ def test_score_counts_holes_false_hits_wrong_surfaces():
 def test_cli_outputs_on_the_teapot(tmp_path, capsys):
     out, md, png = tmp_path / "s.json", tmp_path / "s.md", tmp_path / "s.png"
     assert main(["study", TEAPOT, "--size", "12x12", "--precisions", "f32", "--no-coherence", "--json", str(out),
-                 "--markdown", str(md), "--chart", str(png), "-q"]) == 0
+                 "--markdown", str(md), "--chart", str(png), "--tessellations", "2", "16", "-q"]) == 0
     data = json.loads(out.read_text())
     names = {p["series"] for p in data["points"]}
-    assert names == {"psrt float f32", "psrt fixed f32", "psrt adaptive f32", "psrt mantissa f32"}
-    assert len(data["points"]) == 1 + len(study.FIXED_FRACTIONS) + len(study.PIXEL_FRACTIONS) + len(study.MANTISSA_ULPS)
+    assert names == {"psrt float f32", "psrt fixed f32", "psrt adaptive f32", "psrt mantissa f32",
+                     "embree first image", "embree per frame"}
+    psrt_points = 1 + len(study.FIXED_FRACTIONS) + len(study.PIXEL_FRACTIONS) + len(study.MANTISSA_ULPS)
+    assert len(data["points"]) == psrt_points + 4
+    embree = {(p["series"], p["parameter"]): p for p in data["points"] if p["series"].startswith("embree")}
+    first, fine = embree["embree first image", 2], embree["embree first image", 16]
+    assert first["inside"] is None and fine["mean_error"] < first["mean_error"]  # finer: closer to the truth
+    assert embree["embree per frame", 16]["mean_error"] == fine["mean_error"]
     assert 0 < data["truth_accepted"] <= data["reference_hits"] and data["float32_floor"] > 0
     best = next(p for p in data["points"] if p["series"] == "psrt float f32")
     assert best["holes"] == 0 and best["false_hits"] == 0 and best["mean_error"] < 4 * data["float32_floor"]
     assert md.read_text() == capsys.readouterr().out.rstrip("\n") + "\n" == markdown(data)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert set(series_points(data)) == names
+
+
+def test_tessellation_faces_follow_patches():
+    scene = load_scene(TEAPOT)
+    vertices, faces, face_patch = tessellate(scene, 3)
+    assert vertices.shape == (scene.n_patches * 16, 3) and faces.shape == (scene.n_patches * 18, 3)
+    assert np.all(faces // 16 == face_patch[:, None])          # every face's corners are its patch's points
+    corners = vertices.reshape(scene.n_patches, 4, 4, 3)[:, [0, 0, -1, -1], [0, -1, 0, -1]]
+    m, d = scene.degree_u[:, None], scene.degree_v[:, None]
+    net = scene.points[scene.point_start[:scene.n_patches, None] + np.hstack([0 * m, m, (m + 1) * d, (m + 1) * (d + 1) - 1])][..., :3]
+    assert np.allclose(corners, net, atol=1e-12)                 # a patch interpolates its corner points
 
 
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys):

@@ -9,6 +9,7 @@ import sys
 
 from . import cli, study
 from .options import PRECISIONS
+from .study_peers import TESSELLATIONS
 
 
 def cmd_study(args) -> int:
@@ -18,7 +19,7 @@ def cmd_study(args) -> int:
         scene = cli.load_inputs(outs, args.scene)
         cli._import_losses(args, scene)
         total = len(study.points(study.scene_size(scene), precisions=args.precisions,
-                                 coherence=not args.no_coherence)) + 1
+                                 coherence=not args.no_coherence)) + 1 + len(args.tessellations)
         from tqdm import tqdm
         with tqdm(total=total, desc="study", unit="point", file=sys.stderr, disable=args.quiet,
                   leave=False) as bar:
@@ -29,7 +30,7 @@ def cmd_study(args) -> int:
                 if point is not None:
                     bar.set_postfix_str(f"{point.series} {'' if point.parameter is None else point.parameter}")
             result = study.run(scene, args.size, precisions=args.precisions, coherence=not args.no_coherence,
-                               runs=args.runs, progress=step)
+                               runs=args.runs, tessellations=args.tessellations, progress=step)
         result["scene"] = str(args.scene)
         from .study_report import chart_png, markdown
         table = markdown(result)
@@ -55,6 +56,9 @@ def add_study_command(sub) -> None:
                    help=f"precisions of psrt's series (default: {' '.join(PRECISIONS)})")
     p.add_argument("--no-coherence", action="store_true",
                    help="leave out the series with the fastest coherence setting (8x8 bundles, cache)")
+    p.add_argument("--tessellations", nargs="*", type=cli.positive_int, default=list(TESSELLATIONS), metavar="N",
+                   help="the tessellation peer's N x N quads per patch, traced with Embree (none: leave the peer "
+                        f"out; default: {' '.join(map(str, TESSELLATIONS))})")
     p.add_argument("--json", metavar="OUT", help="write every point's score as JSON ('-': stdout)")
     p.add_argument("--markdown", metavar="OUT.md", help="write the table as Markdown")
     p.add_argument("--chart", metavar="PNG", help="log-log chart of time against error with the float32 floor")

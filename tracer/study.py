@@ -1,7 +1,8 @@
 """`psrt study SCENE`: run time against error on the same primary rays (issue 14 item 1; Dammertz
 table 2.9). psrt's criteria each with a sweep of their parameter, in both precisions, and the
-fastest coherence setting beside the plain one; every point scored against a truth independent of
-the search (study_truth.py). The peers (tessellation + Embree, POV-Ray) are not part of this yet.
+fastest coherence setting beside the plain one; the tessellation peer (study_peers.py: N x N per
+patch, Embree through trimesh) as a first image and per frame; every point scored against a truth
+independent of the search (study_truth.py). The POV-Ray peer is not part of this yet.
 
 Every series traces the rays of the float32 frame (float64 series: the same rays widened exactly).
 Times are the process's CPU time over the trace with one render thread (as psrt bench --coherence),
@@ -164,10 +165,28 @@ def run_point(study: Study, point: Point, runs: int = 1) -> Score:
     return s
 
 
+def run_tessellation(study: Study, n: int, runs: int = 1) -> list:
+    """The tessellation peer at n x n per patch: rows of its first-image and per-frame series."""
+    from .study_peers import embree_scene, embree_trace
+    firsts, frames = [], []
+    for _ in range(runs):
+        def first_image():
+            intersector, face_patch = embree_scene(study.scene, n)
+            return intersector, face_patch, embree_trace(intersector, study.origins, study.dirs, face_patch)
+        (intersector, face_patch, hits), seconds = cpu_timed(first_image)
+        firsts.append(seconds)
+        hits, seconds = cpu_timed(lambda: embree_trace(intersector, study.origins, study.dirs, face_patch))
+        frames.append(seconds)
+    s = score(*hits, None, None, study.truth)
+    return [{"series": name, "parameter": n, **asdict(s), "seconds": float(np.median(times))}
+            for name, times in (("embree first image", firsts), ("embree per frame", frames))]
+
+
 def run(scene, size, base: Options = Options(), *, precisions=PRECISIONS, coherence=True, runs=1,
-        progress=None) -> dict:
+        tessellations=(), progress=None) -> dict:
     """The study as a JSON-ready dict: the truth's figures and every point's score, series by series;
-    progress(point) after each point (and once, with None, after the truth)."""
+    progress(point) after each point (and once, with None, after the truth); tessellations: the peer's N.
+    A peer point's row has the same fields; its `inside` is None (a triangle hit has no box)."""
     study = prepare_study(scene, size)
     if progress is not None:
         progress(None)
@@ -178,6 +197,15 @@ def run(scene, size, base: Options = Options(), *, precisions=PRECISIONS, cohere
         rows.append({"series": point.series, "parameter": point.parameter, **asdict(s)})
         if progress is not None:
             progress(point)
+    from .study_peers import fits, warm_up_embree
+    if tessellations:
+        warm_up_embree()
+    for n in tessellations:
+        if fits(scene, n):
+            rows += run_tessellation(study, n, runs)
+        if progress is not None:
+            progress(Point("embree", n, base))
     return {"size": list(size), "scene_size": truth.size, "rays": int(truth.ref.hit.size),
             "reference_hits": int(truth.ref.hit.sum()), "truth_accepted": int(truth.accepted.sum()),
-            "float32_floor": truth.floor, "runs": runs, "timing": "cpu, one render thread", "points": rows}
+            "float32_floor": truth.floor, "runs": runs,
+            "tessellations_left_out": [n for n in tessellations if not fits(scene, n)], "timing": "cpu, one render thread", "points": rows}

@@ -13,8 +13,9 @@ def _parameter(row) -> str:
     p = row["parameter"]
     if p is None:
         return ""
-    crit = row["series"].split()[1]
-    return {"fixed": f"{p:g} of size", "adaptive": f"{p:g} px", "mantissa": f"{int(p)} ulps"}.get(crit, f"{p:g}")
+    kind = row["series"].split()[0 if row["series"].startswith("embree") else 1]
+    return {"fixed": f"{p:g} of size", "adaptive": f"{p:g} px", "mantissa": f"{int(p)} ulps",
+            "embree": f"{int(p)}x{int(p)} per patch"}.get(kind, f"{p:g}")
 
 
 def markdown(result: dict) -> str:
@@ -22,7 +23,9 @@ def markdown(result: dict) -> str:
     lines = [f"Rays {result['rays']} ({result['size'][0]}x{result['size'][1]}), reference hits "
              f"{result['reference_hits']}, truth accepted at {result['truth_accepted']}; errors are L1 / scene "
              f"size ({result['scene_size']:.4g}); float32 floor {result['float32_floor']:.3g}; time: "
-             f"{result['timing']}, median of {result['runs']}.", "",
+             f"{result['timing']}, median of {result['runs']}."
+             + (f" Tessellations left out (too many vertices): {result['tessellations_left_out']}."
+                if result.get("tessellations_left_out") else ""), "",
              "| series | parameter | time s | mean error | max error | holes | false hits | wrong surface "
              "| truth in box |",
              "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
@@ -50,7 +53,7 @@ def chart_png(result: dict) -> bytes:
     fig, ax = plt.subplots(figsize=(9, 6), dpi=100)
     for name, pts in series_points(result).items():
         err, sec = zip(*pts)
-        style = "--" if "8x8" in name else "-"
+        style = "--" if "8x8" in name or "per frame" in name else "-"
         ax.plot(err, [max(s, 1e-6) for s in sec], style, marker="o" if len(pts) > 1 else "*",
                 markersize=4 if len(pts) > 1 else 10, label=name)
     floor = result["float32_floor"]
