@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fixed_order import dot
-from .stress import _bernstein
+from .stress import grid_points
 
 TESSELLATIONS = (2, 4, 8, 16, 32, 64, 128, 256)
 # Tessellations with more vertices than this are left out (and named in the results): the float64
@@ -28,14 +27,8 @@ def tessellate(scene, n: int):
     surface points in float64, its quads cut into two triangles, faces patch by patch."""
     ts = np.linspace(0.0, 1.0, n + 1)
     grid = np.zeros((scene.n_patches, n + 1, n + 1, 3))
-    for m, d in sorted(set(zip(scene.degree_u.tolist(), scene.degree_v.tolist()))):
-        patches = np.flatnonzero((scene.degree_u == m) & (scene.degree_v == d))
-        rows = scene.point_start[patches][:, None] + np.arange((m + 1) * (d + 1))
-        pts = scene.points[rows]                                      # (P, count, 4): x y z w
-        homog = np.concatenate([pts[..., :3] * pts[..., 3:], pts[..., 3:]], axis=-1)
-        nets = homog.reshape(len(patches), d + 1, m + 1, 4)           # [patch, j (v), i (u), xyzw]
-        s = dot(_bernstein(d, ts), dot(_bernstein(m, ts), nets.transpose(2, 0, 1, 3)).transpose(2, 0, 1, 3))
-        grid[patches] = (s[..., :3] / s[..., 3:]).transpose(2, 0, 1, 3)  # [patch, v, u, xyz]
+    for patches, xyz in grid_points(scene, ts):
+        grid[patches] = xyz.transpose(2, 0, 1, 3)  # [patch, v, u, xyz]
     corner = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)[:-1, :-1].reshape(-1)
     a, b, c, e = corner, corner + 1, corner + n + 2, corner + n + 1   # the quad's corners, counter-clockwise
     quad = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, e], 1)])
