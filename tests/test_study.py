@@ -4,15 +4,18 @@ is asserted."""
 import json
 import math
 from pathlib import Path
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from psrt.cli import main
 from tracer import study
 from tracer.study_report import markdown, series_points
 from tracer.scene import load_scene
 from tracer.study_peers import tessellate
+from tracer.study_povray import available, bicubic_nets, read_ppm16
 from tracer.study_truth import newton, surface_and_partials
 
 TEAPOT = str(Path(__file__).resolve().parents[1] / "sample_models" / "teapot.json")
@@ -64,7 +67,7 @@ def test_score_counts_holes_false_hits_wrong_surfaces():
 def test_cli_outputs_on_the_teapot(tmp_path, capsys):
     out, md, png = tmp_path / "s.json", tmp_path / "s.md", tmp_path / "s.png"
     assert main(["study", TEAPOT, "--size", "12x12", "--precisions", "f32", "--no-coherence", "--json", str(out),
-                 "--markdown", str(md), "--chart", str(png), "--tessellations", "2", "16", "-q"]) == 0
+                 "--markdown", str(md), "--chart", str(png), "--tessellations", "2", "16", "--flatnesses", "-q"]) == 0
     data = json.loads(out.read_text())
     names = {p["series"] for p in data["points"]}
     assert names == {"psrt float f32", "psrt fixed f32", "psrt adaptive f32", "psrt mantissa f32",
@@ -100,3 +103,29 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
     assert main(["study", TEAPOT, "--chart", str(tmp_path / "no" / "dir" / "c.png"), "-q"]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 3 and all(line.startswith("psrt study: error: ") for line in lines)
+
+
+def test_elevated_nets_are_the_same_surfaces():
+    scene = load_scene(TEAPOT)
+    nets, why = bicubic_nets(scene)
+    assert why is None and nets.shape == (scene.n_patches, 16, 3)
+    elevated = replace(scene, points=np.column_stack([nets.reshape(-1, 3), np.ones(16 * scene.n_patches)]),
+                       point_start=np.arange(scene.n_patches + 1) * 16, degree_u=np.full(scene.n_patches, 3),
+                       degree_v=np.full(scene.n_patches, 3))
+    assert np.allclose(tessellate(elevated, 4)[0], tessellate(scene, 4)[0], atol=1e-12)
+
+
+def test_ppm16_reader(tmp_path):
+    pixels = (np.arange(2 * 3 * 3) * 3000).astype(">u2").reshape(2, 3, 3)  # big-endian, as PPM is
+    (tmp_path / "a.ppm").write_bytes(b"P6\n# a comment\n3 2\n65535\n" + pixels.tobytes())
+    assert np.array_equal(read_ppm16(tmp_path / "a.ppm"), pixels)
+
+
+@pytest.mark.skipif(not available(), reason="povray not installed (scripts/setup --povray)")
+def test_povray_peer_on_the_teapot(tmp_path):
+    out = tmp_path / "s.json"
+    assert main(["study", TEAPOT, "--size", "12x12", "--precisions", "f32", "--no-coherence", "--tessellations",
+                 "--flatnesses", "0.1", "0.001", "--json", str(out), "-q"]) == 0
+    rows = {p["parameter"]: p for p in json.loads(out.read_text())["points"] if p["series"] == "povray first image"}
+    assert set(rows) == {0.1, 0.001} and rows[0.001]["compared"] > 0
+    assert rows[0.001]["mean_error"] < rows[0.1]["mean_error"] < 0.05   # flatter: closer; the depth read back

@@ -5,11 +5,24 @@ The Markdown table goes to stdout (to stderr when `--json -` takes stdout); --js
 """
 from __future__ import annotations
 
+import argparse
+import math
 import sys
 
 from . import cli, study
 from .options import PRECISIONS
 from .study_peers import TESSELLATIONS
+from .study_povray import FLATNESSES
+
+
+def positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not value > 0 or math.isinf(value):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
 
 
 def cmd_study(args) -> int:
@@ -19,7 +32,7 @@ def cmd_study(args) -> int:
         scene = cli.load_inputs(outs, args.scene)
         cli._import_losses(args, scene)
         total = len(study.points(study.scene_size(scene), precisions=args.precisions,
-                                 coherence=not args.no_coherence)) + 1 + len(args.tessellations)
+                                 coherence=not args.no_coherence)) + 1 + len(args.tessellations) + len(args.flatnesses)
         from tqdm import tqdm
         with tqdm(total=total, desc="study", unit="point", file=sys.stderr, disable=args.quiet,
                   leave=False) as bar:
@@ -30,7 +43,8 @@ def cmd_study(args) -> int:
                 if point is not None:
                     bar.set_postfix_str(f"{point.series} {'' if point.parameter is None else point.parameter}")
             result = study.run(scene, args.size, precisions=args.precisions, coherence=not args.no_coherence,
-                               runs=args.runs, tessellations=args.tessellations, progress=step)
+                               runs=args.runs, tessellations=args.tessellations,
+                               flatnesses=args.flatnesses, progress=step)
         result["scene"] = str(args.scene)
         from .study_report import chart_png, markdown
         table = markdown(result)
@@ -59,6 +73,9 @@ def add_study_command(sub) -> None:
     p.add_argument("--tessellations", nargs="*", type=cli.positive_int, default=list(TESSELLATIONS), metavar="N",
                    help="the tessellation peer's N x N quads per patch, traced with Embree (none: leave the peer "
                         f"out; default: {' '.join(map(str, TESSELLATIONS))})")
+    p.add_argument("--flatnesses", nargs="*", type=positive_float, default=list(FLATNESSES), metavar="F",
+                   help="POV-Ray's bicubic_patch flatness values (none: leave the peer out; default: "
+                        f"{' '.join(map(str, FLATNESSES))}; only with povray installed and an integral bicubic scene)")
     p.add_argument("--json", metavar="OUT", help="write every point's score as JSON ('-': stdout)")
     p.add_argument("--markdown", metavar="OUT.md", help="write the table as Markdown")
     p.add_argument("--chart", metavar="PNG", help="log-log chart of time against error with the float32 floor")

@@ -2,7 +2,8 @@
 table 2.9). psrt's criteria each with a sweep of their parameter, in both precisions, and the
 fastest coherence setting beside the plain one; the tessellation peer (study_peers.py: N x N per
 patch, Embree through trimesh) as a first image and per frame; every point scored against a truth
-independent of the search (study_truth.py). The POV-Ray peer is not part of this yet.
+independent of the search (study_truth.py); POV-Ray's bicubic_patch at a sweep of flatness where
+povray is installed and the scene is integral bicubic (study_povray.py).
 
 Every series traces the rays of the float32 frame (float64 series: the same rays widened exactly).
 Times are the process's CPU time over the trace with one render thread (as psrt bench --coherence),
@@ -132,6 +133,7 @@ class Study:
     dirs: np.ndarray
     pixel_angle: float
     truth: Truth
+    view: object
     geometries: dict
 
 
@@ -146,7 +148,7 @@ def prepare_study(scene, size, view=None) -> Study:
     ref = reference_frame(scene, frame, geoms["f64"])
     extent = scene_size(scene)
     position, accepted = polished_truth(scene, geoms["f64"], ref, extent)
-    return Study(scene, origins, dirs, pixel_angle, Truth(ref, position, accepted, extent), geoms)
+    return Study(scene, origins, dirs, pixel_angle, Truth(ref, position, accepted, extent), view, geoms)
 
 
 def run_point(study: Study, point: Point, runs: int = 1) -> Score:
@@ -182,8 +184,27 @@ def run_tessellation(study: Study, n: int, runs: int = 1) -> list:
             for name, times in (("embree first image", firsts), ("embree per frame", frames))]
 
 
+def run_povray(study: Study, flatness: float, runs: int = 1) -> dict:
+    """The POV-Ray peer at `flatness`: its row (first image only: povray keeps nothing across runs)."""
+    from .study_povray import trace
+    timed = [trace(study.scene, study.view, study.origins, study.dirs, flatness) for _ in range(runs)]
+    s = score(*timed[-1][0], None, None, study.truth)
+    return {"series": "povray first image", "parameter": flatness, **asdict(s),
+            "seconds": float(np.median([t for _, t in timed]))}
+
+
+def povray_left_out(scene, flatnesses) -> str | None:
+    """Why the POV-Ray peer cannot run on the scene, or None."""
+    from .study_povray import available, bicubic_nets
+    if not flatnesses:
+        return None
+    if not available():
+        return "povray is not installed (scripts/setup --povray)"
+    return bicubic_nets(scene)[1]
+
+
 def run(scene, size, base: Options = Options(), *, precisions=PRECISIONS, coherence=True, runs=1,
-        tessellations=(), progress=None) -> dict:
+        tessellations=(), flatnesses=(), progress=None) -> dict:
     """The study as a JSON-ready dict: the truth's figures and every point's score, series by series;
     progress(point) after each point (and once, with None, after the truth); tessellations: the peer's N.
     A peer point's row has the same fields; its `inside` is None (a triangle hit has no box)."""
@@ -205,7 +226,13 @@ def run(scene, size, base: Options = Options(), *, precisions=PRECISIONS, cohere
             rows += run_tessellation(study, n, runs)
         if progress is not None:
             progress(Point("embree", n, base))
+    povray_why = povray_left_out(scene, flatnesses)
+    for flatness in flatnesses:
+        if povray_why is None:
+            rows.append(run_povray(study, flatness, runs))
+        if progress is not None:
+            progress(Point("povray", flatness, base))
     return {"size": list(size), "scene_size": truth.size, "rays": int(truth.ref.hit.size),
             "reference_hits": int(truth.ref.hit.sum()), "truth_accepted": int(truth.accepted.sum()),
             "float32_floor": truth.floor, "runs": runs,
-            "tessellations_left_out": [n for n in tessellations if not fits(scene, n)], "timing": "cpu, one render thread", "points": rows}
+            "tessellations_left_out": [n for n in tessellations if not fits(scene, n)], "povray_left_out": povray_why, "timing": "cpu, one render thread", "points": rows}

@@ -13,9 +13,9 @@ def _parameter(row) -> str:
     p = row["parameter"]
     if p is None:
         return ""
-    kind = row["series"].split()[0 if row["series"].startswith("embree") else 1]
+    kind = row["series"].split()[0 if row["series"].startswith(("embree", "povray")) else 1]
     return {"fixed": f"{p:g} of size", "adaptive": f"{p:g} px", "mantissa": f"{int(p)} ulps",
-            "embree": f"{int(p)}x{int(p)} per patch"}.get(kind, f"{p:g}")
+            "embree": f"{int(p)}x{int(p)} per patch", "povray": f"flatness {p:g}"}.get(kind, f"{p:g}")
 
 
 def markdown(result: dict) -> str:
@@ -25,7 +25,8 @@ def markdown(result: dict) -> str:
              f"size ({result['scene_size']:.4g}); float32 floor {result['float32_floor']:.3g}; time: "
              f"{result['timing']}, median of {result['runs']}."
              + (f" Tessellations left out (too many vertices): {result['tessellations_left_out']}."
-                if result.get("tessellations_left_out") else ""), "",
+                if result.get("tessellations_left_out") else "")
+             + (f" POV-Ray left out: {result['povray_left_out']}." if result.get("povray_left_out") else ""), "",
              "| series | parameter | time s | mean error | max error | holes | false hits | wrong surface "
              "| truth in box |",
              "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
