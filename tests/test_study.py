@@ -129,3 +129,15 @@ def test_povray_peer_on_the_teapot(tmp_path):
     rows = {p["parameter"]: p for p in json.loads(out.read_text())["points"] if p["series"] == "povray first image"}
     assert set(rows) == {0.1, 0.001} and rows[0.001]["compared"] > 0
     assert rows[0.001]["mean_error"] < rows[0.1]["mean_error"] < 0.05   # flatter: closer; the depth read back
+
+
+def test_report_directory(tmp_path, capsys):
+    out = tmp_path / "rep"
+    assert main(["study", TEAPOT, "--size", "8x8", "--precisions", "f32", "--no-coherence", "--tessellations", "2",
+                 "--flatnesses", "--report", str(out), "--bench-size", "8x8", "--bench-runs", "1",
+                 "--stress-size", "8x8", "-q"]) == 0
+    text = (out / "report.md").read_text()
+    assert "![time against error](study.png)" in text and "| CPU |" in text
+    assert "## Coherence" in text and "## Numerical stress" in text and "| psrt float f32 |" in text
+    assert (out / "study.png").read_bytes()[:4] == b"\x89PNG" and json.loads((out / "study.json").read_text())
+    assert main(["study", TEAPOT, "--report", str(tmp_path / "no" / "dir"), "-q"]) == 2

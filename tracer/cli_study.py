@@ -1,12 +1,15 @@
 """`psrt study SCENE`: run time against error on the same primary rays (tracer/study.py).
 
 The Markdown table goes to stdout (to stderr when `--json -` takes stdout); --json, --markdown and
---chart write the same results to files. Exit status 0, or 2 on bad input as for every command.
+--chart write the same results to files; --report DIR adds the coherence benchmark and the stress
+suite on the scene and writes them with the machine into DIR/report.md (issue 14 item 4). Exit
+status 0, or 2 on bad input as for every command.
 """
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 
 from . import cli, study
@@ -25,9 +28,60 @@ def positive_float(text: str) -> float:
     return value
 
 
+REPORT_FILES = ("report.md", "study.png", "study.json")  # what --report DIR writes
+
+
+def report_paths(directory) -> list:
+    """The report's files in `directory` (made if missing; its parent must exist)."""
+    if os.path.exists(directory) and not os.path.isdir(directory):
+        raise ValueError(f"--report {directory}: not a directory")
+    if not os.path.isdir(os.path.dirname(os.path.abspath(directory))):
+        raise ValueError(f"--report {directory}: its parent directory does not exist")
+    os.makedirs(directory, exist_ok=True)
+    return [os.path.join(directory, name) for name in REPORT_FILES]
+
+
+def stress_table(scene, args) -> str:
+    """The stress suite's table on the scene at --stress-size, with a progress bar."""
+    from tqdm import tqdm
+
+    from . import stress
+    chosen = stress.variants()
+    with tqdm(total=len(chosen), desc="stress", unit="variant", file=sys.stderr, disable=args.quiet,
+              leave=False) as bar:
+        results = stress.run(scene, chosen, args.stress_size, progress=lambda r: bar.update(1))
+    return stress.table(results)
+
+
+def coherence_tables(scene, args) -> str:
+    """`psrt bench --coherence` on the scene alone at --bench-size, --bench-runs (one render thread)."""
+    from .bench_coherence import run_coherence
+    from .bench_tables import format_result
+    from .options import Options
+    log = None if args.quiet else (lambda text: print(f"coherence: {text}", file=sys.stderr, flush=True))
+    return format_result(run_coherence({"scene": scene}, Options(threads=1), size=args.bench_size,
+                                       runs=args.bench_runs, log=log))
+
+
+def write_report(outs, args, scene, result, table: str, png: bytes) -> None:
+    from .study_document import document, machine
+    md, chart, data = report_paths(args.report)
+    coherence = coherence_tables(scene, args)
+    stress_text = stress_table(scene, args)
+    sizes = {"study": f"{args.size[0]}x{args.size[1]}", "coherence": f"{args.bench_size[0]}x{args.bench_size[1]}, "
+             f"{args.bench_runs} run(s)", "stress": f"{args.stress_size[0]}x{args.stress_size[1]}"}
+    notes = {k: f"Image size {v}." for k, v in sizes.items()}
+    outs.write(chart, lambda f: f.write(png))
+    cli._write_json(outs, result, data)
+    outs.write_text(md, document(str(args.scene), table, os.path.basename(chart), coherence, stress_text,
+                                 machine(), notes))
+
+
 def cmd_study(args) -> int:
-    outs = cli.planned_outputs(("--json", args.json, True), ("--markdown", args.markdown),
-                               ("--chart", args.chart), scene=args.scene)
+    planned = [("--json", args.json, True), ("--markdown", args.markdown), ("--chart", args.chart)]
+    if args.report:
+        planned += [("--report", path) for path in report_paths(args.report)]
+    outs = cli.planned_outputs(*planned, scene=args.scene)
     with outs:
         scene = cli.load_inputs(outs, args.scene)
         cli._import_losses(args, scene)
@@ -52,9 +106,11 @@ def cmd_study(args) -> int:
             cli._write_json(outs, result, args.json)
         if args.markdown:
             outs.write_text(args.markdown, table)
+        png = chart_png(result) if args.chart or args.report else b""
         if args.chart:
-            png = chart_png(result)
             outs.write(args.chart, lambda f: f.write(png))
+        if args.report:
+            write_report(outs, args, scene, result, table, png)
     print(table, file=sys.stderr if args.json == cli.STDOUT else sys.stdout)  # JSON owns stdout
     return 0
 
@@ -79,6 +135,14 @@ def add_study_command(sub) -> None:
     p.add_argument("--json", metavar="OUT", help="write every point's score as JSON ('-': stdout)")
     p.add_argument("--markdown", metavar="OUT.md", help="write the table as Markdown")
     p.add_argument("--chart", metavar="PNG", help="log-log chart of time against error with the float32 floor")
+    p.add_argument("--report", metavar="DIR", help="also run the coherence benchmark and the stress suite on the "
+                   f"scene and write one Markdown report with the machine, the chart and every table ({', '.join(REPORT_FILES)})")
+    p.add_argument("--bench-size", type=cli.parse_size, default=(256, 256),
+                   help="--report: the coherence benchmark's image size (default: 256x256)")
+    p.add_argument("--bench-runs", type=cli.positive_int, default=3,
+                   help="--report: the coherence benchmark's timed runs (default: 3)")
+    p.add_argument("--stress-size", type=cli.parse_size, default=(64, 64),
+                   help="--report: the stress suite's image size (default: 64x64)")
     cli._add_quiet(p)
     cli._add_strict(p)
     p.set_defaults(func=cmd_study)
