@@ -12,7 +12,7 @@ import pytest
 
 from psrt.cli import main
 from tracer import study
-from tracer.study_report import markdown, series_points
+from tracer.study_report import markdown, series_points, targets
 from tracer.scene import load_scene
 from tracer.study_peers import tessellate
 from tracer.study_povray import available, bicubic_nets, read_ppm16
@@ -141,3 +141,12 @@ def test_report_directory(tmp_path, capsys):
     assert "## Coherence" in text and "## Numerical stress" in text and "| psrt float f32 |" in text
     assert (out / "study.png").read_bytes()[:4] == b"\x89PNG" and json.loads((out / "study.json").read_text())
     assert main(["study", TEAPOT, "--report", str(tmp_path / "no" / "dir"), "-q"]) == 2
+
+
+def test_targets_read_off_the_results():
+    pts = [{"series": "psrt float f32", "parameter": None, "mean_error": 1e-8, "seconds": 1.0, "holes": 0},
+           {"series": "embree first image", "parameter": 256, "mean_error": 5e-7, "seconds": 8.0, "holes": 0},
+           {"series": "povray first image", "parameter": 0.01, "mean_error": 1e-4, "seconds": 0.5, "holes": 3},
+           {"series": "psrt adaptive f32", "parameter": 0.5, "mean_error": 1e-4, "seconds": 0.4, "holes": 0}]
+    met = [ok for _, ok, _ in targets({"float32_floor": 6e-9, "points": pts})]
+    assert met == [True, False, True, True]   # 1.7 x floor; 50 x below embree; faster; faster, fewer holes

@@ -34,7 +34,47 @@ def markdown(result: dict) -> str:
         inside = "—" if r["inside"] is None else f"{100 * r['inside']:.2f}%"
         lines.append(f"| {r['series']} | {_parameter(r)} | {r['seconds']:.4f} | {_fmt(r['mean_error'])} | "
                      f"{_fmt(r['max_error'])} | {r['holes']} | {r['false_hits']} | {r['wrong_surface']} | {inside} |")
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines) + "\n" + ("\n" + format_targets(result) if targets(result) else "")
+
+
+def _point(result: dict, series: str, parameter=None):
+    return next((r for r in result["points"] if r["series"] == series and r["parameter"] == parameter), None)
+
+
+def targets(result: dict) -> list:
+    """Issue 14's targets read off the study: (target, met or None where not measured, the figures)."""
+    from .options import Options
+    out = []
+    best = _point(result, "psrt float f32")
+    if best is None or best["mean_error"] is None:
+        return out
+    floor = result["float32_floor"]
+    out.append(("psrt float f32 within 2x of the float32 floor", best["mean_error"] <= 2 * floor,
+                f"{best['mean_error']:.3g} = {best['mean_error'] / floor:.2f} x floor {floor:.3g}"))
+    peers = [r for r in result["points"] if r["series"].endswith("first image") and r["mean_error"]]
+    if peers:
+        peer = min(peers, key=lambda r: r["mean_error"])
+        name = f"{peer['series']} {_parameter(peer)}"
+        out.append(("psrt float f32 >= 100x below the most accurate peer point",
+                    peer["mean_error"] >= 100 * best["mean_error"],
+                    f"{name}: {peer['mean_error']:.3g} = {peer['mean_error'] / best['mean_error']:.0f} x"))
+        out.append(("psrt float f32 faster than that peer's first image", best["seconds"] < peer["seconds"],
+                    f"{best['seconds']:.3f} s against {peer['seconds']:.3f} s"))
+    pov = _point(result, "povray first image", 0.01)
+    adaptive = _point(result, "psrt adaptive f32", Options().pixel_fraction)
+    if pov is not None and adaptive is not None:
+        out.append((f"psrt adaptive f32 ({Options().pixel_fraction:g} px) faster than POV-Ray at flatness 0.01, "
+                    "fewer holes", adaptive["seconds"] < pov["seconds"] and adaptive["holes"] < pov["holes"],
+                    f"{adaptive['seconds']:.3f} s, {adaptive['holes']} holes against {pov['seconds']:.3f} s, "
+                    f"{pov['holes']} holes"))
+    return out
+
+
+def format_targets(result: dict) -> str:
+    """The targets as a Markdown list."""
+    rows = targets(result)
+    return "\n".join(["Targets (issue 14):", ""] + [f"- {'met' if ok else 'NOT met'}: {what} ({figures})"
+                                                       for what, ok, figures in rows]) + "\n" if rows else ""
 
 
 def series_points(result: dict) -> dict:
