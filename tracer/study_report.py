@@ -92,11 +92,13 @@ def chart_png(result: dict) -> bytes:
     matplotlib.use("Agg")  # no display needed
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(9, 6), dpi=100)
-    for name, pts in series_points(result).items():
+    colours = plt.cm.tab20.colors  # 20 distinct colours: the default cycle of 10 repeats
+    for k, (name, pts) in enumerate(series_points(result).items()):
         err, sec = zip(*pts)
         style = "--" if "8x8" in name or "per frame" in name else "-"
-        ax.plot(err, [max(s, 1e-6) for s in sec], style, marker="o" if len(pts) > 1 else "*",
-                markersize=4 if len(pts) > 1 else 10, label=name)
+        marker = "^" if not name.startswith("psrt") else ("s" if " f64" in name else "o")
+        ax.plot(err, [max(s, 1e-6) for s in sec], style, color=colours[k % len(colours)], marker=marker,
+                markersize=4 if len(pts) > 1 else 11, label=name)
     floor = result["float32_floor"]
     if floor > 0:
         ax.axvline(floor, color="black", linestyle=":", label=f"float32 floor {floor:.2g}")
