@@ -101,8 +101,9 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
     assert main(["study", str(tmp_path / "missing.json"), "--size", "8x8", "-q"]) == 2
     assert main(["study", TEAPOT, "--size", "0x8", "-q"]) == 2
     assert main(["study", TEAPOT, "--chart", str(tmp_path / "no" / "dir" / "c.png"), "-q"]) == 2
+    assert main(["study", TEAPOT, "--size", "16384x16384", "--memory-limit", "1G", "-q"]) == 2  # refused before work
     lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 3 and all(line.startswith("psrt study: error: ") for line in lines)
+    assert len(lines) == 4 and all(line.startswith("psrt study: error: ") for line in lines)
 
 
 def test_elevated_nets_are_the_same_surfaces():

@@ -12,7 +12,7 @@ import math
 import os
 import sys
 
-from . import cli, study
+from . import cli, memory, study
 from .options import PRECISIONS
 from .study_peers import TESSELLATIONS
 from .study_povray import FLATNESSES
@@ -85,6 +85,8 @@ def cmd_study(args) -> int:
     with outs:
         scene = cli.load_inputs(outs, args.scene)
         cli._import_losses(args, scene)
+        # the first frame, its reference and the truth are held while each point's frame is traced
+        memory.check_render(*args.size, reference=True, frames=3, limit=args.memory_limit)
         total = len(study.points(study.scene_size(scene), precisions=args.precisions,
                                  coherence=not args.no_coherence)) + 1 + len(args.tessellations) + len(args.flatnesses)
         from tqdm import tqdm
@@ -143,6 +145,7 @@ def add_study_command(sub) -> None:
                    help="--report: the coherence benchmark's timed runs (default: 3)")
     p.add_argument("--stress-size", type=cli.parse_size, default=(64, 64),
                    help="--report: the stress suite's image size (default: 64x64)")
+    cli._add_memory_limit(p)
     cli._add_quiet(p)
     cli._add_strict(p)
     p.set_defaults(func=cmd_study)
