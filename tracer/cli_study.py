@@ -59,7 +59,8 @@ def coherence_tables(scene, args) -> str:
     from .bench_tables import format_result
     from .options import Options
     log = None if args.quiet else (lambda text: print(f"coherence: {text}", file=sys.stderr, flush=True))
-    return format_result(run_coherence({"scene": scene}, Options(threads=1), size=args.bench_size,
+    label = os.path.splitext(os.path.basename(str(args.scene)))[0]
+    return format_result(run_coherence({label: scene}, Options(threads=1), size=args.bench_size,
                                        runs=args.bench_runs, log=log))
 
 

@@ -121,7 +121,7 @@ def trace(scene, view, origins, dirs, flatness: float):
             f.write(pov_source(nets, view, w, h, depth0, 2 * radius, flatness))
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         subprocess.run(["povray", f"+I{src}", f"+O{out}", f"+W{w}", f"+H{h}", "+FP16", "-A", "-D", "-P",
-                        "File_Gamma=1.0", "-GA", "+L/usr/share/povray-3.7/include"],
+                        "File_Gamma=1.0", "-GA"],
                        check=True, capture_output=True)
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         rgb = read_ppm16(out).astype(np.int64)
