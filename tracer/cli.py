@@ -1,4 +1,5 @@
-"""The tracer's commands of the `psrt` command line: render, trace, bench, stress (cli_stress.py).
+"""The tracer's commands of the `psrt` command line: render, trace, bench, stress (cli_stress.py),
+study (cli_study.py).
 
 `add_commands` adds them to the subparsers of psrt/cli.py, which adds the viewer's
 `view` beside them and runs the chosen command. Tracer option flags are generated
@@ -334,6 +335,8 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_bench)
     from .cli_stress import add_stress_command  # in its own module: this one is long enough
     add_stress_command(sub)
+    from .cli_study import add_study_command
+    add_study_command(sub)
 
 
 def _default_scene() -> Path:

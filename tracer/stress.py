@@ -96,6 +96,20 @@ def _bernstein(degree: int, ts) -> np.ndarray:
     return binom * ts[:, None] ** i * (1.0 - ts[:, None]) ** (degree - i)
 
 
+def grid_points(scene, ts):
+    """Yields (patches, points [v, u, patch, xyz]) per degree pair of the scene: its patches (indices)
+    evaluated in float64 on the parameter grid ts x ts (trims ignored)."""
+    for m, d in sorted(set(zip(scene.degree_u.tolist(), scene.degree_v.tolist()))):
+        patches = np.flatnonzero((scene.degree_u == m) & (scene.degree_v == d))
+        rows = scene.point_start[patches][:, None] + np.arange((m + 1) * (d + 1))
+        pts = scene.points[rows]                                      # (P, count, 4): x y z w
+        homog = np.concatenate([pts[..., :3] * pts[..., 3:], pts[..., 3:]], axis=-1)
+        nets = homog.reshape(len(patches), d + 1, m + 1, 4)           # [patch, j (v), i (u), xyzw]
+        bu, bv = _bernstein(m, ts), _bernstein(d, ts)
+        s = dot(bv, dot(bu, nets.transpose(2, 0, 1, 3)).transpose(2, 0, 1, 3))  # [v, u, patch, xyzw]
+        yield patches, s[..., :3] / s[..., 3:]
+
+
 def surface_samples(scene, k: int | None = None):
     """(points, normals, curved), (count, 3), (count, 3), (count,): every patch on a k x k parameter
     grid (trims ignored; k from the patch count so that at most MAX_SAMPLES points are made), in
@@ -105,15 +119,7 @@ def surface_samples(scene, k: int | None = None):
     k = k or int(min(33, max(2, math.isqrt(MAX_SAMPLES // max(n, 1)))))
     ts = np.linspace(0.0, 1.0, k)
     points, normals, curved = [], [], []
-    for m, d in sorted(set(zip(scene.degree_u.tolist(), scene.degree_v.tolist()))):
-        patches = np.flatnonzero((scene.degree_u == m) & (scene.degree_v == d))
-        rows = scene.point_start[patches][:, None] + np.arange((m + 1) * (d + 1))
-        pts = scene.points[rows]                                      # (P, count, 4): x y z w
-        homog = np.concatenate([pts[..., :3] * pts[..., 3:], pts[..., 3:]], axis=-1)
-        nets = homog.reshape(len(patches), d + 1, m + 1, 4)           # [patch, j (v), i (u), xyzw]
-        bu, bv = _bernstein(m, ts), _bernstein(d, ts)
-        s = dot(bv, dot(bu, nets.transpose(2, 0, 1, 3)).transpose(2, 0, 1, 3))  # [v, u, patch, xyzw]
-        xyz = s[..., :3] / s[..., 3:]
+    for patches, xyz in grid_points(scene, ts):
         n = np.cross(np.gradient(xyz, axis=1), np.gradient(xyz, axis=0))
         with np.errstate(invalid="ignore", divide="ignore"):
             n = n / np.sqrt(n[..., 0:1] ** 2 + n[..., 1:2] ** 2 + n[..., 2:3] ** 2)
