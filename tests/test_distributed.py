@@ -107,3 +107,15 @@ def test_a_scheduler_without_workers_is_refused_not_waited_on(tmp_path, capsys, 
                      "--scheduler", empty.scheduler_address]) == 2
     err = capsys.readouterr().err
     assert "has no workers" in err and len(err.strip().splitlines()) == 1
+
+
+def test_study_points_on_the_cluster_score_as_local(client):
+    """Issue 14's target: a distributed study gives the same errors as a local one."""
+    from tracer import study
+    scene = load_scene(TEAPOT)
+    kwargs = dict(precisions=("f32",), coherence=False, tessellations=(), flatnesses=())
+    here = study.run(scene, (12, 12), **kwargs)
+    there = study.run(scene, (12, 12), client=client, **kwargs)
+    strip = [{k: v for k, v in row.items() if k not in ("seconds", "contended")} for row in here["points"]]
+    assert strip == [{k: v for k, v in row.items() if k not in ("seconds", "contended")} for row in there["points"]]
+    assert all("contended" in row for row in there["points"]) and len(strip) > 10

@@ -66,7 +66,7 @@ def test_score_counts_holes_false_hits_wrong_surfaces():
 
 def test_cli_outputs_on_the_teapot(tmp_path, capsys):
     out, md, png = tmp_path / "s.json", tmp_path / "s.md", tmp_path / "s.png"
-    assert main(["study", TEAPOT, "--size", "12x12", "--precisions", "f32", "--no-coherence", "--json", str(out),
+    assert main(["study", "--scheduler", "none", TEAPOT, "--size", "12x12", "--precisions", "f32", "--no-coherence", "--json", str(out),
                  "--markdown", str(md), "--chart", str(png), "--tessellations", "2", "16", "--flatnesses", "-q"]) == 0
     data = json.loads(out.read_text())
     names = {p["series"] for p in data["points"]}
@@ -98,10 +98,10 @@ def test_tessellation_faces_follow_patches():
 
 
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
-    assert main(["study", str(tmp_path / "missing.json"), "--size", "8x8", "-q"]) == 2
-    assert main(["study", TEAPOT, "--size", "0x8", "-q"]) == 2
-    assert main(["study", TEAPOT, "--chart", str(tmp_path / "no" / "dir" / "c.png"), "-q"]) == 2
-    assert main(["study", TEAPOT, "--size", "16384x16384", "--memory-limit", "1G", "-q"]) == 2  # refused before work
+    assert main(["study", "--scheduler", "none", str(tmp_path / "missing.json"), "--size", "8x8", "-q"]) == 2
+    assert main(["study", "--scheduler", "none", TEAPOT, "--size", "0x8", "-q"]) == 2
+    assert main(["study", "--scheduler", "none", TEAPOT, "--chart", str(tmp_path / "no" / "dir" / "c.png"), "-q"]) == 2
+    assert main(["study", "--scheduler", "none", TEAPOT, "--size", "16384x16384", "--memory-limit", "1G", "-q"]) == 2  # refused before work
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 4 and all(line.startswith("psrt study: error: ") for line in lines)
 
@@ -125,7 +125,7 @@ def test_ppm16_reader(tmp_path):
 @pytest.mark.skipif(not available(), reason="povray not installed (scripts/setup --povray)")
 def test_povray_peer_on_the_teapot(tmp_path):
     out = tmp_path / "s.json"
-    assert main(["study", TEAPOT, "--size", "12x12", "--precisions", "f32", "--no-coherence", "--tessellations",
+    assert main(["study", "--scheduler", "none", TEAPOT, "--size", "12x12", "--precisions", "f32", "--no-coherence", "--tessellations",
                  "--flatnesses", "0.1", "0.001", "--json", str(out), "-q"]) == 0
     rows = {p["parameter"]: p for p in json.loads(out.read_text())["points"] if p["series"] == "povray first image"}
     assert set(rows) == {0.1, 0.001} and rows[0.001]["compared"] > 0
@@ -134,14 +134,14 @@ def test_povray_peer_on_the_teapot(tmp_path):
 
 def test_report_directory(tmp_path, capsys):
     out = tmp_path / "rep"
-    assert main(["study", TEAPOT, "--size", "8x8", "--precisions", "f32", "--no-coherence", "--tessellations", "2",
+    assert main(["study", "--scheduler", "none", TEAPOT, "--size", "8x8", "--precisions", "f32", "--no-coherence", "--tessellations", "2",
                  "--flatnesses", "--report", str(out), "--bench-size", "8x8", "--bench-runs", "1",
                  "--stress-size", "8x8", "-q"]) == 0
     text = (out / "report.md").read_text()
     assert "![time against error](study.png)" in text and "| CPU |" in text
     assert "## Coherence" in text and "## Numerical stress" in text and "| psrt float f32 |" in text
     assert (out / "study.png").read_bytes()[:4] == b"\x89PNG" and json.loads((out / "study.json").read_text())
-    assert main(["study", TEAPOT, "--report", str(tmp_path / "no" / "dir"), "-q"]) == 2
+    assert main(["study", "--scheduler", "none", TEAPOT, "--report", str(tmp_path / "no" / "dir"), "-q"]) == 2
 
 
 def test_targets_read_off_the_results():

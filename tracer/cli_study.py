@@ -11,6 +11,7 @@ import argparse
 import math
 import os
 import sys
+import time
 
 from . import cli, memory, study
 from .options import PRECISIONS
@@ -99,9 +100,14 @@ def cmd_study(args) -> int:
                 bar.update(1)
                 if point is not None:
                     bar.set_postfix_str(f"{point.series} {'' if point.parameter is None else point.parameter}")
-            result = study.run(scene, args.size, precisions=args.precisions, coherence=not args.no_coherence,
-                               runs=args.runs, tessellations=args.tessellations,
-                               flatnesses=args.flatnesses, progress=step)
+            from .distributed import describe, open_client
+            start = time.perf_counter()
+            with open_client(args.scheduler, args.workers) as client:
+                where = describe(client)
+                result = study.run(scene, args.size, precisions=args.precisions, coherence=not args.no_coherence,
+                                   runs=args.runs, tessellations=args.tessellations,
+                                   flatnesses=args.flatnesses, progress=step, client=client)
+            result["wall_seconds"], result["ran_on"] = time.perf_counter() - start, where
         result["scene"] = str(args.scene)
         from .study_report import chart_png, markdown
         table = markdown(result)
@@ -146,6 +152,7 @@ def add_study_command(sub) -> None:
                    help="--report: the coherence benchmark's timed runs (default: 3)")
     p.add_argument("--stress-size", type=cli.parse_size, default=(64, 64),
                    help="--report: the stress suite's image size (default: 64x64)")
+    cli.add_scheduler_flags(p, default="local")
     cli._add_memory_limit(p)
     cli._add_quiet(p)
     cli._add_strict(p)

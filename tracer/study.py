@@ -204,20 +204,30 @@ def povray_left_out(scene, flatnesses) -> str | None:
 
 
 def run(scene, size, base: Options = Options(), *, precisions=PRECISIONS, coherence=True, runs=1,
-        tessellations=(), flatnesses=(), progress=None) -> dict:
+        tessellations=(), flatnesses=(), progress=None, client=None) -> dict:
     """The study as a JSON-ready dict: the truth's figures and every point's score, series by series;
     progress(point) after each point (and once, with None, after the truth); tessellations: the peer's N.
-    A peer point's row has the same fields; its `inside` is None (a triangle hit has no box)."""
+    A peer point's row has the same fields; its `inside` is None (a triangle hit has no box).
+    client: a dask.distributed Client whose workers run psrt's points (study_distributed.py; each
+    row then says whether its worker's core was contended); the peers run here."""
     study = prepare_study(scene, size)
     if progress is not None:
         progress(None)
     truth = study.truth
     rows = []
-    for point in points(truth.size, base, precisions, coherence):
-        s = run_point(study, point, runs)
-        rows.append({"series": point.series, "parameter": point.parameter, **asdict(s)})
-        if progress is not None:
-            progress(point)
+    chosen = points(truth.size, base, precisions, coherence)
+    if client is None:
+        scores = []
+        for point in chosen:
+            scores.append((run_point(study, point, runs), None))
+            if progress is not None:
+                progress(point)
+    else:
+        from .study_distributed import run_points
+        scores = run_points(scene, size, chosen, runs, client, progress)
+    for point, (s, contended) in zip(chosen, scores):
+        row = {"series": point.series, "parameter": point.parameter, **asdict(s)}
+        rows.append(row if contended is None else {**row, "contended": contended})
     from .study_peers import fits, warm_up_embree
     if tessellations:
         warm_up_embree()
