@@ -8,24 +8,17 @@ the patch in float64 (any degree, rational or not), at the hit's parameters with
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from .trim import bernstein
+
 STEP = 1e-4  # parameter step of the differences
-
-
-def _bernstein(deg: int, t: np.ndarray) -> np.ndarray:
-    """(k, deg + 1) Bernstein polynomials of degree deg at t (k,)."""
-    i = np.arange(deg + 1)
-    binom = np.array([math.comb(deg, k) for k in i], np.float64)
-    return binom[None, :] * t[:, None] ** i * (1.0 - t[:, None]) ** (deg - i)
 
 
 def _points(grids: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """(k, 3) surface points of homogeneous grids (k, m + 1, n + 1, 4) at (u, v)."""
     m, n = grids.shape[1] - 1, grids.shape[2] - 1
-    bu, bv = _bernstein(m, u), _bernstein(n, v)
+    bu, bv = bernstein(m, u), bernstein(n, v)
     h = 0.0
     for i in range(m + 1):  # term by term (fixed_order.py): the same bits on every machine
         for j in range(n + 1):

@@ -39,8 +39,8 @@ from .origins import patch_ulps, robust_origins
 from .penumbra import LIT, PENUMBRA, UNCLASSIFIED, expanded_set, inside, scene_box
 from .ray_batch import BatchTracer, batch_rays
 from .scene import Light
-from .shade import AMBIENT
-from .vertices import Vertices, environment, facing, schlick, unit
+from .shade import AMBIENT, unit
+from .vertices import Vertices, environment, facing, schlick
 
 PHASES = ("shadow_rays", "penumbra_tests", "secondary_rays", "shading")
 
@@ -152,10 +152,12 @@ class Lighting:
         traced = np.zeros(m, np.int32)
         klass = np.full(m, UNCLASSIFIED, np.int8)
         view = -v.d
+        # one origin per vertex for every light's shadow rays: they all leave on the normal's side
+        origin = self._origins(v, v.normal) if self.opts.shadows and not self.headlight and m else None
         for li, light in enumerate(self.lights):
             count = self.counts[li]
             lp = points(light, v.pos, seeds(pixel_ids, v.code, li), count)
-            vis, rays, lit = self._visibility(v, lp, li, pixel_ids)
+            vis, rays, lit = self._visibility(v, lp, li, origin)
             if self.recorder is not None:
                 self.recorder("samples", pix=v.pix, code=v.code, light=li, points=lp, visible=vis)
             traced += rays
@@ -175,15 +177,13 @@ class Lighting:
             fraction += self.share[li] * seen / count
         return out, fraction, traced, klass
 
-    def _visibility(self, v: Vertices, lp, li, pixel_ids):
-        """(visible (m, S) bool, rays traced (m,), proven lit (m,) bool or None where not asked)."""
+    def _visibility(self, v: Vertices, lp, li, origin):
+        """(visible (m, S) bool, rays traced (m,), proven lit (m,) bool or None where not asked) of
+        the sample points lp (m, S, 3) of light li; origin: the shadow rays' (m, 3), None: unshadowed."""
         m, count = lp.shape[:2]
         front = np.sum(v.normal[:, None, :] * (lp - v.pos[:, None]), axis=2) > 0.0
-        if not self.opts.shadows or self.headlight or m == 0:
+        if origin is None:
             return front, np.zeros(m, np.int32), None
-        origin = robust_origins(self.opts.origin, lo=v.lo, hi=v.hi, position=v.pos, normal=v.normal,
-                                ulp=self.ulp[v.patch], ulps=self.opts.origin_ulps, threshold=v.threshold,
-                                epsilon=self.opts.origin_epsilon)
         need = front if self.opts.trivial_tests else np.ones_like(front)
         if self.opts.trivial_tests:
             with self._lock:
@@ -237,6 +237,12 @@ class Lighting:
                 self.centre_rays += len(idx)
         return lit, ask
 
+    def _origins(self, v: Vertices, side, rows=slice(None)):
+        """Robust origins (origins.py) of rays leaving the vertices v[rows] on the side of `side`."""
+        return robust_origins(self.opts.origin, lo=v.lo[rows], hi=v.hi[rows], position=v.pos[rows], normal=side,
+                              ulp=self.ulp[v.patch[rows]], ulps=self.opts.origin_ulps, threshold=v.threshold[rows],
+                              epsilon=self.opts.origin_epsilon)
+
     # ---- secondary rays --------------------------------------------------------------
 
     def _spawn(self, v: Vertices, kr, kt, eta, radiance) -> Vertices:
@@ -262,9 +268,7 @@ class Lighting:
         weight = v.weight[src] * np.concatenate([p[3] for p in parts])[:, None]
         code = np.concatenate([p[4] for p in parts])
         inside_now = np.concatenate([p[5] for p in parts])
-        origin = robust_origins(self.opts.origin, lo=v.lo[src], hi=v.hi[src], position=v.pos[src], normal=side,
-                                ulp=self.ulp[v.patch[src]], ulps=self.opts.origin_ulps, threshold=v.threshold[src],
-                                epsilon=self.opts.origin_epsilon)
+        origin = self._origins(v, side, src)
         grow = v.grow[src]
         if self.slope > 0.0:  # adaptive: a curved mirror spreads the beam (curvature.py)
             kappa = max_curvature(self.scene, v.patch[src], patch_parameters(self.geom, v.patch[src], v.uv[src]))

@@ -46,7 +46,8 @@ def background(height: int, y0: int, y1: int, width: int) -> np.ndarray:
     return np.repeat(np.repeat(g[:, None, None], width, axis=1), 3, axis=2)
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
+def unit(v: np.ndarray) -> np.ndarray:
+    """Vectors (..., 3) scaled to length 1 (zero ones left as they are)."""
     n = np.linalg.norm(v, axis=-1, keepdims=True)
     return v / np.where(n > 0, n, 1.0)
 
@@ -73,14 +74,14 @@ def _shaded(scene, pos, n, d, eye, patch) -> np.ndarray:
     colour, spec, shin = _material_tables(scene)
     mat = np.asarray(scene.patch_material, np.int64)[patch]
     kd, ks, ns = colour[mat], spec[mat][:, None], shin[mat][:, None]
-    v = _unit(-d)
+    v = unit(-d)
     # patches have no consistent orientation: light the side facing the eye
     facing = np.sum(n * v, axis=1, keepdims=True)
     n = np.where(facing < 0, -n, n)
     out = AMBIENT * kd
     lights = _lights(scene) or [(eye, np.ones(3))]
     for centre, rgb in lights:
-        l_dir = _unit(centre - pos)
+        l_dir = unit(centre - pos)
         ndl = np.sum(n * l_dir, axis=1, keepdims=True)
         lit = ndl > 0
         r = 2.0 * ndl * n - l_dir

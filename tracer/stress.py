@@ -18,6 +18,7 @@ from .camera import View, primary_rays, view_of
 from .errors import SceneError
 from .fixed_order import dot, norm
 from .options import Options
+from .trim import bernstein
 
 # Scales apply about the origin, like the view's: a factor about the scene's centre would also
 # move a scene that lies off the origin relative to its size, which is what `move` measures.
@@ -89,13 +90,6 @@ def moved_view(view: View, scale=1.0, offset=(0.0, 0.0, 0.0)) -> View:
                 tuple(map(float, np.asarray(view.look_at) * scale + off)), view.up, view.fov_deg)
 
 
-def _bernstein(degree: int, ts) -> np.ndarray:
-    """(len(ts), degree + 1): B_i^degree(t)."""
-    i = np.arange(degree + 1)
-    binom = np.array([math.comb(degree, k) for k in i], float)
-    return binom * ts[:, None] ** i * (1.0 - ts[:, None]) ** (degree - i)
-
-
 def grid_points(scene, ts):
     """Yields (patches, points [v, u, patch, xyz]) per degree pair of the scene: its patches (indices)
     evaluated in float64 on the parameter grid ts x ts (trims ignored)."""
@@ -105,7 +99,7 @@ def grid_points(scene, ts):
         pts = scene.points[rows]                                      # (P, count, 4): x y z w
         homog = np.concatenate([pts[..., :3] * pts[..., 3:], pts[..., 3:]], axis=-1)
         nets = homog.reshape(len(patches), d + 1, m + 1, 4)           # [patch, j (v), i (u), xyzw]
-        bu, bv = _bernstein(m, ts), _bernstein(d, ts)
+        bu, bv = bernstein(m, ts), bernstein(d, ts)
         s = dot(bv, dot(bu, nets.transpose(2, 0, 1, 3)).transpose(2, 0, 1, 3))  # [v, u, patch, xyzw]
         yield patches, s[..., :3] / s[..., 3:]
 

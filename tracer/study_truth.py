@@ -8,11 +8,10 @@ residual tiny, so a root that wandered to another sheet of the surface is droppe
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from .curvature import patch_grids, patch_parameters
+from .trim import bernstein
 
 NEWTON_STEPS = 8
 RESIDUAL = 1e-12    # accepted residual, relative to the scene's size
@@ -24,13 +23,10 @@ BOX_SLACK_ULPS = 8
 
 def _bernstein_with_derivative(deg: int, t: np.ndarray):
     """(B, dB), each (k, deg + 1): Bernstein polynomials of degree deg at t (k,) and their derivatives."""
-    i = np.arange(deg + 1)
-    binom = np.array([math.comb(deg, k) for k in i], np.float64)
-    b = binom * t[:, None] ** i * (1.0 - t[:, None]) ** (deg - i)
+    b = bernstein(deg, t)
     if deg == 0:
         return b, np.zeros_like(b)
-    lower = np.array([math.comb(deg - 1, k) for k in range(deg)], np.float64)
-    b1 = lower * t[:, None] ** np.arange(deg) * (1.0 - t[:, None]) ** (deg - 1 - np.arange(deg))
+    b1 = bernstein(deg - 1, t)
     db = np.zeros_like(b)
     db[:, 1:] += deg * b1      # d/dt B_i^n = n (B_{i-1}^{n-1} - B_i^{n-1})
     db[:, :-1] -= deg * b1

@@ -35,12 +35,6 @@ class Vertices:
         return Vertices(*(getattr(self, f)[keep] for f in self.__dataclass_fields__))
 
 
-def unit(v):
-    """Vectors (..., 3) scaled to length 1 (zero ones left as they are)."""
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.where(n > 0, n, 1.0)
-
-
 def facing(normal, d):
     """Normals turned to face against the directions d."""
     return np.where(np.sum(normal * d, axis=-1, keepdims=True) > 0, -normal, normal)
