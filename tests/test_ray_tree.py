@@ -18,7 +18,7 @@ from tracer.geometry import prepare  # noqa: E402
 from tracer.lighting import Lighting  # noqa: E402
 from tracer.options import Options  # noqa: E402
 from tracer.ray_batch import RB_D, RB_O  # noqa: E402
-from tracer.ray_tree import ray_tree, trace_steps  # noqa: E402
+from tracer.ray_tree import TESTS, ray_tree, trace_steps  # noqa: E402
 from tracer.render import render  # noqa: E402
 from tracer.scene import load_scene  # noqa: E402
 
@@ -58,6 +58,9 @@ def rendered_rays(scene, opts, size):
             for i, p in enumerate(b["pix"]):
                 if kind == "proven_lit":
                     row = ("penumbra_test", b["code"][i], b["light"], b["origin"][i], None, not b["lit"][i], -1)
+                elif kind == "proven_umbra":
+                    row = ("umbra_test", b["code"][i], b["light"], b["origin"][i], None, b["patch"][i] >= 0,
+                           b["patch"][i])
                 elif kind == "shadow":
                     row = ("shadow", b["code"][i], b["light"], b["origin"][i], b["rays"][i, RB_D:RB_D + 3],
                            b["occluded"][i], -1)
@@ -79,8 +82,8 @@ def rendered_rays(scene, opts, size):
 
 
 def tree_rows(tree):
-    return [(r.kind, r.code, r.light, r.origin, None if r.kind == "penumbra_test" else r.direction, r.hit,
-             r.patch if r.kind in ("reflected", "refracted") else -1) for r in tree.rays[1:]]
+    return [(r.kind, r.code, r.light, r.origin, None if r.kind in TESTS else r.direction, r.hit,
+             r.patch if r.kind in ("reflected", "refracted", "umbra_test") else -1) for r in tree.rays[1:]]
 
 
 def same_rows(a, b) -> bool:
@@ -119,6 +122,7 @@ def test_teapot_trees_are_the_render_s_rays():
     pixels = [(x, y) for y in range(1, SIZE[1], 3) for x in range(1, SIZE[0], 3)]
     trees = check_pixels(scene, Options(), pixels)
     rays = [r for t in trees for r in t.rays]
+    assert any(r.kind == "umbra_test" and r.hit for r in rays)
     kinds = {k: [r for r in rays if r.kind == k] for k in ("shadow", "penumbra_test", "reflected")}
     assert any(r.hit for r in kinds["shadow"]) and any(not r.hit for r in kinds["shadow"])
     assert any(not r.hit for r in kinds["penumbra_test"]) and any(r.hit for r in kinds["penumbra_test"])
@@ -164,7 +168,7 @@ def test_glass_teapot_trees_with_other_lights(lights, settings):
 
 def test_box_corner_and_subdivision_traces_of_each_ray():
     scene = glass_scene()
-    opts = Options()
+    opts = Options(penumbra="tmax")  # this pixel is in the umbra: no shadow rays with penumbra 'umbra'
     geom = prepare(scene, "f32")
     tree = ray_tree(scene, opts, 12, 10, size=SIZE, geometry=geom)
     assert {"shadow", "reflected", "refracted"} <= {r.kind for r in tree.rays}
@@ -174,7 +178,7 @@ def test_box_corner_and_subdivision_traces_of_each_ray():
         assert np.all((r.corner == lo) | (r.corner == hi))  # a corner of the box the ray leaves
         outward = np.where(r.corner == hi, r.origin - hi, lo - r.origin)
         assert np.all(outward > 0) and np.all(outward < 1e-4)  # moved out of it by a few ulps
-        if r.kind == "penumbra_test":
+        if r.kind in TESTS:
             assert r.steps is None
             continue
         assert r.steps.effort == r.effort and r.steps.hit == r.hit, r.kind
@@ -198,7 +202,7 @@ def test_trace_cli_adds_the_ray_tree_under_a_new_key(tmp_path):
     assert first["kind"] == "primary" and first["trace"]["steps"] == a["steps"]
     for got, ray in zip(tree["rays"], want.rays):
         assert got["kind"] == ray.kind and got["origin"] == ray.ray[RB_O:RB_O + 3].tolist()
-        assert got["outcome"] == ray.outcome() and ("trace" in got) == (ray.kind != "penumbra_test")
+        assert got["outcome"] == ray.outcome() and ("trace" in got) == (ray.kind not in TESTS)
 
 
 @pytest.mark.parametrize("pixel", [(-1, 0), (24, 3)])

@@ -50,7 +50,7 @@ def run_penumbra(scene, base, *, size=(256, 256), runs: int = 3, samples: int = 
     diagonal = norm(np.asarray(hi) - np.asarray(lo))
     light = scene.lights[0]
     own = {"primary": base.with_(shadows=False, reflections=False), "scene off": base.with_(penumbra="off"),
-           "scene tmax": base.with_(penumbra="tmax")}
+           "scene tmax": base.with_(penumbra="tmax"), "scene umbra": base.with_(penumbra="umbra")}
     own_times, _ = _timed(scene, geom, own, size, runs)
     rows = []
     for fraction in radii:
@@ -62,9 +62,10 @@ def run_penumbra(scene, base, *, size=(256, 256), runs: int = 3, samples: int = 
         hit = off.hit
         rows.append({"radius": fraction, "seconds": times, "identical": bool(same),
                      "proven_lit": float(np.mean(frames["tmax"].penumbra[hit] == 0)),
+                     "proven_umbra": float(np.mean(frames["umbra"].penumbra[hit] == 2)),
                      "rays_per_hit": {m: float(frames[m].shadow_rays[hit].mean()) for m in PENUMBRAS}})
         if log is not None:
-            log(f"radius {fraction:g}: off {times['off']:.3f} s, tmax {times['tmax']:.3f} s")
+            log(f"radius {fraction:g}: off {times['off']:.3f} s, tmax {times['tmax']:.3f} s, umbra {times['umbra']:.3f} s")
     scene.lights[0] = light
     return {"size": list(size), "runs": runs, "samples": samples, "own": own_times,
             "own_samples": light.samples, "own_radius": light.radius / diagonal, "rows": rows}
@@ -73,17 +74,19 @@ def run_penumbra(scene, base, *, size=(256, 256), runs: int = 3, samples: int = 
 def format_penumbra(result: dict) -> str:
     w, h = result["size"]
     own = result["own"]
-    lines = [f"{'radius':>7} {'off s':>7} {'expanded s':>10} {'tmax s':>7} {'off/tmax':>8} {'lit %':>6} "
-             f"{'rays/hit off':>12} {'rays/hit tmax':>13} {'same':>5}"]
+    lines = [f"{'radius':>7} {'off s':>7} {'expanded s':>10} {'tmax s':>7} {'umbra s':>7} {'off/tmax':>8} "
+             f"{'off/umbra':>9} {'lit %':>6} {'umbra %':>7} {'rays/hit off':>12} {'tmax':>5} {'umbra':>5} {'same':>5}"]
     for r in result["rows"]:
         s, rays = r["seconds"], r["rays_per_hit"]
-        lines.append(f"{r['radius']:7.3f} {s['off']:7.3f} {s['expanded']:10.3f} {s['tmax']:7.3f} "
-                     f"{s['off'] / s['tmax']:8.2f} {100 * r['proven_lit']:6.1f} {rays['off']:12.1f} "
-                     f"{rays['tmax']:13.1f} {'yes' if r['identical'] else 'NO':>5}")
+        lines.append(f"{r['radius']:7.3f} {s['off']:7.3f} {s['expanded']:10.3f} {s['tmax']:7.3f} {s['umbra']:7.3f} "
+                     f"{s['off'] / s['tmax']:8.2f} {s['off'] / s['umbra']:9.2f} {100 * r['proven_lit']:6.1f} "
+                     f"{100 * r['proven_umbra']:7.1f} {rays['off']:12.1f} {rays['tmax']:5.1f} {rays['umbra']:5.1f} "
+                     f"{'yes' if r['identical'] else 'NO':>5}")
     lines.append(f"{w}x{h}, {result['samples']} samples a light, one thread, CPU s (median of {result['runs']}); "
                  "radius as a fraction of the scene's diagonal; same: every method's image bit-identical to off")
     lines.append(f"the scene's own light (radius {result['own_radius']:.3f}, {result['own_samples']} samples): "
                  f"primary rays alone {own['primary']:.3f} s, off {own['scene off']:.3f} s "
                  f"({own['scene off'] / own['primary']:.2f}x), tmax {own['scene tmax']:.3f} s "
-                 f"({own['scene tmax'] / own['primary']:.2f}x the primary rays)")
+                 f"({own['scene tmax'] / own['primary']:.2f}x), umbra {own['scene umbra']:.3f} s "
+                 f"({own['scene umbra'] / own['primary']:.2f}x the primary rays)")
     return "\n".join(lines)

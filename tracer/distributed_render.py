@@ -63,6 +63,7 @@ def merged_lighting(reports: list) -> dict:
         for k, v in r["seconds"].items():
             seconds[k] = round(seconds.get(k, 0.0) + v, 4)
     return {"seconds": seconds, "centre_rays": sum(r["centre_rays"] for r in reports),
+            "umbra_tests": sum(r["umbra_tests"] for r in reports),
             "trivially_decided": sum(r["trivially_decided"] for r in reports),
             "expanded_sets": reports[0]["expanded_sets"]}
 

@@ -25,6 +25,12 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
+def dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row by row dot products of (..., 3) arrays, (a0 b0 + a1 b1) + a2 b2: np.sum(a * b, axis=-1)
+    without a reduction per row (as slow as its rows are many)."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
 def affine(points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     """points (..., 3) through the 3 x 4 (or 4 x 4) affine matrix: L p + t, term by term."""
     m = np.asarray(matrix, np.float64)

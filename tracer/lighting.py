@@ -34,12 +34,14 @@ import time
 import numpy as np
 
 from .curvature import max_curvature, patch_parameters
+from .fixed_order import dot3
 from .light_samples import half_extent, points, sample_count, seeds
 from .origins import patch_ulps, robust_origins
-from .penumbra import LIT, PENUMBRA, UNCLASSIFIED, expanded_set, inside, scene_box
+from .penumbra import LIT, PENUMBRA, UMBRA, UNCLASSIFIED, expanded_set, inside, scene_box
 from .ray_batch import BatchTracer, batch_rays
 from .scene import Light
 from .shade import AMBIENT, unit
+from .umbra import UmbraTest
 from .vertices import Vertices, environment, facing, schlick
 
 PHASES = ("shadow_rays", "penumbra_tests", "secondary_rays", "shading")
@@ -69,17 +71,22 @@ class Lighting:
         weights = np.array([float(li.intensity) for li in lights])
         self.share = weights / weights.sum() if weights.sum() > 0 else np.full(len(lights), 1.0 / len(lights))
         self.counts = [sample_count(li, opts.light_samples) for li in lights]
-        self.sets = [expanded_set(geom, li, opts.penumbra) if opts.shadows and opts.penumbra != "off"
-                     and li.type != "point" else None for li in lights]
+        # 'umbra' is 'tmax' and umbra detection (umbra.py)
+        self.grown = "tmax" if opts.penumbra == "umbra" else opts.penumbra
+        fast = opts.shadows and opts.penumbra != "off"
+        self.sets = [expanded_set(geom, li, self.grown) if fast and li.type != "point" else None for li in lights]
+        self.umbra = UmbraTest(scene, geom) if fast and opts.penumbra == "umbra" and scene.lights else None
         self.box = scene_box(geom)
         self.width = None
         self.seconds = dict.fromkeys(PHASES, 0.0)
         self.centre_rays = 0
+        self.umbra_tests = 0
         self.trivial = 0  # shadow rays decided without tracing: the sample lies behind the surface
         self._lock = threading.Lock()
         # recorder(kind, **rays) sees every batch of secondary rays (the pixel inspector's ray tree,
         # ray_tree.py): kind 'shadow' (pix, code, light, origin, target, occluded, effort), 'proven_lit'
-        # (pix, code, light, origin, centre, lit: the points tested only), 'secondary' (pix, code,
+        # (pix, code, light, origin, centre, lit: the points tested only), 'proven_umbra' (pix, code,
+        # light, origin, centre, patch: the occluding patch, -1 none; the points tested only), 'secondary' (pix, code,
         # origin, direction, hit: kernel channels of the hits), each with the batch `rays` traced
         # (ray_batch.batch_rays; none for proven_lit) and the boxes and normals the origins left from
         # (box_min, box_max, side); 'samples' (pix, code, light, points (m, S, 3), visible (m, S)).
@@ -150,57 +157,67 @@ class Lighting:
         out = AMBIENT * kd
         fraction = np.zeros(m)
         traced = np.zeros(m, np.int32)
-        klass = np.full(m, UNCLASSIFIED, np.int8)
+        all_lit, all_umbra, classified = np.ones(m, bool), np.ones(m, bool), False
         view = -v.d
         # one origin per vertex for every light's shadow rays: they all leave on the normal's side
         origin = self._origins(v, v.normal) if self.opts.shadows and not self.headlight and m else None
         for li, light in enumerate(self.lights):
             count = self.counts[li]
             lp = points(light, v.pos, seeds(pixel_ids, v.code, li), count)
-            vis, rays, lit = self._visibility(v, lp, li, origin)
+            vis, rays, cls = self._visibility(v, lp, li, origin)
             if self.recorder is not None:
                 self.recorder("samples", pix=v.pix, code=v.code, light=li, points=lp, visible=vis)
             traced += rays
-            if lit is not None:
-                klass = np.maximum(klass, np.where(lit, LIT, PENUMBRA).astype(np.int8))
+            if cls is not None:
+                all_lit &= cls == LIT
+                all_umbra &= cls == UMBRA
+                classified = True
+            # every sample's Lambert + Phong term at once (m, S, 3), elementwise as one sample at a time
+            l_dir = unit(lp - v.pos[:, None])
+            ndl = dot3(v.normal[:, None], l_dir)[..., None]
+            r = 2.0 * ndl * v.normal[:, None] - l_dir
+            rdv = np.clip(dot3(r, view[:, None]), 0.0, 1.0)[..., None]
+            phong = rdv ** np.repeat(ns[:, None], count, 1)  # contiguous: numpy's power loop may differ for broadcasts
+            term = np.where(vis[..., None], kd[:, None] * ndl + ks[:, None] * phong, 0.0)
             glow = np.zeros((m, 3))
-            seen = np.zeros(m)
-            for s in range(count):  # sample by sample: the same sums whatever m
-                l_dir = unit(lp[:, s] - v.pos)
-                ndl = np.sum(v.normal * l_dir, axis=1, keepdims=True)
-                r = 2.0 * ndl * v.normal - l_dir
-                rdv = np.clip(np.sum(r * view, axis=1, keepdims=True), 0.0, 1.0)
-                on = vis[:, s:s + 1]
-                glow += np.where(on, kd * ndl + ks * rdv ** ns, 0.0)
-                seen += vis[:, s]
+            for s in range(count):  # summed sample by sample: the same sums whatever m
+                glow += term[:, s]
             out = out + glow * (self.rgb[li] / count)
-            fraction += self.share[li] * seen / count
-        return out, fraction, traced, klass
+            fraction += self.share[li] * vis.sum(axis=1) / count
+        klass = np.where(all_umbra, UMBRA, np.where(all_lit, LIT, PENUMBRA)) if classified else np.full(m, UNCLASSIFIED)
+        return out, fraction, traced, klass.astype(np.int8)
 
     def _visibility(self, v: Vertices, lp, li, origin):
-        """(visible (m, S) bool, rays traced (m,), proven lit (m,) bool or None where not asked) of
-        the sample points lp (m, S, 3) of light li; origin: the shadow rays' (m, 3), None: unshadowed."""
+        """(visible (m, S) bool, rays traced (m,), penumbra class (m,): LIT, PENUMBRA or UMBRA, or None
+        where not asked) of the sample points lp (m, S, 3) of light li; origin: the shadow rays'
+        (m, 3), None: unshadowed."""
         m, count = lp.shape[:2]
-        front = np.sum(v.normal[:, None, :] * (lp - v.pos[:, None]), axis=2) > 0.0
+        front = dot3(v.normal[:, None, :], lp - v.pos[:, None]) > 0.0
         if origin is None:
             return front, np.zeros(m, np.int32), None
         need = front if self.opts.trivial_tests else np.ones_like(front)
         if self.opts.trivial_tests:
             with self._lock:
                 self.trivial += int(m * count - front.sum())
-        lit = None
+        lit = dark = None
+        asked = need.any(axis=1)
         if self.sets[li] is not None:
             start = time.perf_counter()
-            lit, asked = self._proven_lit(origin, li, v.threshold, v.grow, need.any(axis=1), lp)
+            if self.umbra is not None:  # first: it is cheap, and a point in umbra spares the lit test's walk
+                dark = self._proven_umbra(v, origin, li, asked)
+                need = need & ~dark[:, None]
+            lit, tested = self._proven_lit(origin, li, v.threshold, v.grow, asked if dark is None else asked & ~dark, lp)
             need = need & ~lit[:, None]
             if self.recorder is not None:
-                self.recorder("proven_lit", pix=v.pix[asked], code=v.code[asked], light=li, origin=origin[asked],
-                              centre=self.lights[li].centre(), lit=lit[asked], box_min=v.lo[asked],
-                              box_max=v.hi[asked], side=v.normal[asked])
+                self.recorder("proven_lit", pix=v.pix[tested], code=v.code[tested], light=li, origin=origin[tested],
+                              centre=self.lights[li].centre(), lit=lit[tested], box_min=v.lo[tested],
+                              box_max=v.hi[tested], side=v.normal[tested])
             self._clock("penumbra_tests", start)
         start = time.perf_counter()
         rows, cols = np.nonzero(need)
         occluded = np.zeros((m, count), bool)
+        if dark is not None:  # every sample ray would have met the occluding patch
+            occluded[dark] = True
         o = origin[rows]
         dt = v.grow[rows] * np.linalg.norm(lp[rows, cols] - o, axis=1)
         rays = batch_rays(o, lp[rows, cols] - o, 0.0, 1.0, v.threshold[rows], dt)
@@ -210,13 +227,29 @@ class Lighting:
             self.recorder("shadow", pix=v.pix[rows], code=v.code[rows], light=li, origin=o, target=lp[rows, cols],
                           occluded=occluded[rows, cols], effort=effort, rays=rays, box_min=v.lo[rows],
                           box_max=v.hi[rows], side=v.normal[rows])
-        return front & ~occluded, need.sum(axis=1).astype(np.int32), lit
+        cls = None
+        if lit is not None:  # umbra: proven (umbra.py), or every sample dark without a ray (facing away)
+            umbra = ~asked if dark is None else ~asked | dark
+            cls = np.where(lit, LIT, np.where(umbra, UMBRA, PENUMBRA))
+        return front & ~occluded, need.sum(axis=1).astype(np.int32), cls
+
+    def _proven_umbra(self, v: Vertices, origin, li, ask):
+        """(m,) bool: every shadow ray from these origins to light li proven occluded by one patch
+        (umbra.py); asked only where ask (points not proven lit with samples to trace)."""
+        cover = self.umbra(self.lights[li], origin, ask)
+        if self.recorder is not None:
+            self.recorder("proven_umbra", pix=v.pix[ask], code=v.code[ask], light=li, origin=origin[ask],
+                          centre=self.lights[li].centre(), patch=cover[ask], box_min=v.lo[ask], box_max=v.hi[ask],
+                          side=v.normal[ask])
+        with self._lock:
+            self.umbra_tests += int(ask.sum())
+        return cover >= 0
 
     def _proven_lit(self, origin, li, threshold, grow, asked, lp):
         """(m,) bool: Lemma 3.1 / 4.2 (penumbra.py) prove every sample ray from these origins to
         the sample points lp (m, S, 3) unoccluded; and (m,) bool: the points tested."""
         lit = np.zeros(len(origin), bool)
-        ask = asked if self.opts.penumbra != "tmax" else asked & inside(origin, self.box)
+        ask = asked if self.grown != "tmax" else asked & inside(origin, self.box)
         idx = np.nonzero(ask)[0]
         if len(idx):
             es = self.sets[li]
@@ -291,5 +324,6 @@ class Lighting:
         """Time per phase (summed over threads), centre rays of the penumbra tests, shadow rays the
         triviality tests decided, the expanded data sets' build figures."""
         return {"seconds": {k: round(s, 4) for k, s in self.seconds.items()}, "centre_rays": self.centre_rays,
+                "umbra_tests": self.umbra_tests,
                 "trivially_decided": self.trivial,
                 "expanded_sets": [s.report for s in self.sets if s is not None]}

@@ -22,7 +22,7 @@ ACCELS = ("bvh", "kdtree", "grid")
 KD_SPLITS = ("sah", "middle")
 ORDERS = ("scanline", "peano", "itembuffer")
 ORIGINS = ("box_corner", "shift", "fixed_epsilon")  # where a secondary ray starts (lighting.py)
-PENUMBRAS = ("off", "expanded", "tmax")  # fast penumbra (penumbra.py)
+PENUMBRAS = ("off", "expanded", "tmax", "umbra")  # fast penumbra (penumbra.py)
 
 # Kernel codes: small ints so the numba kernels take scalars, not strings.
 CRITERION_CODE = {name: i for i, name in enumerate(CRITERIA)}
@@ -85,11 +85,13 @@ class Options(Record):
                             lo=0, hi=1 << 20, log=True, when={"origin": "box_corner"})
     origin_epsilon: float = _lit(1e-4, "fixed_epsilon: world units the origin is moved along the normal",
                                  lo=0.0, hi=1e6, when={"origin": "fixed_epsilon"})
-    penumbra: str = _lit("tmax", "fast penumbra (Lukaszewski): off traces every light sample; expanded first "
+    penumbra: str = _lit("umbra", "fast penumbra (Lukaszewski): off traces every light sample; expanded first "
                          "walks the point's ray to the light's centre through the patch boxes grown by the "
                          "light (Lemma 3.1) and tests the surfaces in the grown boxes it meets against the "
                          "cone of the shadow rays, and a point it proves lit traces no samples; tmax grows "
-                         "each box only by its own shrink factor (Lemma 4.2). The image is the same",
+                         "each box only by its own shrink factor (Lemma 4.2); umbra adds umbra detection (Lemma "
+                         "4.3): a point whose every shadow ray is proven to cross one patch traces no samples "
+                         "either. The image is the same",
                          choices=PENUMBRAS)
     trivial_tests: bool = _lit(True, "decide shadow rays without tracing where the surface faces away from the "
                                "light sample (Lischinski 6); the image is the same")

@@ -73,8 +73,8 @@ def make_batch_kernel(variant):
 PenumbraContext = namedtuple("PenumbraContext", "leaves trims grown samples count state ray hit counts half")
 
 
-MAX_NEAR = 64  # leaves a point's walk may visit before it is sampled instead
-CONE_BOXES = 256  # the boxes a point's cone searches may compute in all (a cone that meets a surface
+MAX_NEAR = 512  # leaves a point's walk may visit before it is sampled instead
+CONE_BOXES = 2048  # the boxes a point's cone searches may compute in all (a cone that meets a surface
 # explores the whole patch of surface it meets: such points are cheaper sampled)
 
 

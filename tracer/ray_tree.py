@@ -28,7 +28,8 @@ from .ray_batch import RB_D, RB_DT, RB_LEN, RB_O, RB_T0, RB_TMAX, RB_TMIN
 from .render import bundle_shape, frame_lighting, kernel_inputs, trace_rays
 from .trace_one import PixelTrace, trace_pixel, trace_ray_steps
 
-KINDS = ("primary", "penumbra_test", "shadow", "reflected", "refracted")
+KINDS = ("primary", "penumbra_test", "umbra_test", "shadow", "reflected", "refracted")
+TESTS = ("penumbra_test", "umbra_test")  # rays asked of the fast penumbra, not traced by the search
 
 
 def _vec(a) -> list | None:
@@ -83,6 +84,8 @@ class RayRecord:
             return "occluded" if self.hit else "lit"
         if self.kind == "penumbra_test":
             return "not proven lit" if self.hit else "proven lit"
+        if self.kind == "umbra_test":
+            return f"proven umbra: every shadow ray crosses patch {self.patch}" if self.hit else "not proven umbra"
         return f"patch {self.patch}" if self.hit else "miss"
 
     def to_json(self, steps: bool = False) -> dict:
@@ -174,13 +177,18 @@ def ray_tree(scene, opts: Options, x: int, y: int, *, size=None, view: View | No
     for kind, b in recorder.batches:
         if kind == "samples":
             tree.lights += [{"code": int(c), "light": int(b["light"]), "samples": int(vis.size),
-                             "visible": int(vis.sum()), "proven_lit": None} for c, vis in zip(b["code"], b["visible"])]
+                             "visible": int(vis.sum()), "proven_lit": None, "proven_umbra": None}
+                            for c, vis in zip(b["code"], b["visible"])]
         else:
             tree.rays += _records(kind, b, corner)
-    for entry in tree.lights:  # the penumbra test's answer beside the samples it spared
+    for entry in tree.lights:  # the fast penumbra's answers beside the samples they spared
         for r in tree.rays:
-            if r.kind == "penumbra_test" and (r.code, r.light) == (entry["code"], entry["light"]):
+            if (r.code, r.light) != (entry["code"], entry["light"]):
+                continue
+            if r.kind == "penumbra_test":
                 entry["proven_lit"] = not r.hit
+            elif r.kind == "umbra_test":
+                entry["proven_umbra"] = r.hit
     if hit:
         tree.shadow_rays = int(frame.shadow_rays[local])
         tree.radiance = frame.radiance[local].astype(np.float64)
@@ -205,6 +213,10 @@ def _records(kind: str, b: dict, corner: bool) -> list:
         return [RayRecord("penumbra_test", int(b["code"][i]), _centre_ray(b["origin"][i], b["centre"]),
                           not bool(b["lit"][i]), int(b["light"]), b["centre"], corners[i], boxes[i])
                 for i in range(n)]
+    if kind == "proven_umbra":
+        return [RayRecord("umbra_test", int(b["code"][i]), _centre_ray(b["origin"][i], b["centre"]),
+                          bool(b["patch"][i] >= 0), int(b["light"]), b["centre"], corners[i], boxes[i],
+                          patch=int(b["patch"][i])) for i in range(n)]
     out = b["hit"]
     records = []
     for i in range(n):
@@ -232,7 +244,7 @@ def trace_steps(tree: RayTree, scene, geom: Geometry, opts: Options, view: View,
     for r in tree.rays[:limit]:
         if r.kind == "primary":
             r.steps = trace_pixel(scene, opts, *tree.pixel, size=size, view=view, geometry=geom)
-        elif r.kind != "penumbra_test":
+        elif r.kind not in TESTS:
             q = r.ray
             r.steps = trace_ray_steps(geom, secondary, q[RB_O:RB_O + 3], q[RB_D:RB_D + 3], angle, tree.pixel,
                                       t_min=q[RB_TMIN], t_max=q[RB_TMAX], t0=q[RB_T0], dt=q[RB_DT],

@@ -20,7 +20,7 @@ import numpy as np
 from PIL import Image
 
 from .colormap import colorize, to_uint8
-from .fixed_order import norm
+from .fixed_order import dot3, norm
 
 MODES = ("shaded", "normal", "uv", "depth", "patch")
 AMBIENT = 0.06
@@ -48,7 +48,7 @@ def background(height: int, y0: int, y1: int, width: int) -> np.ndarray:
 
 def unit(v: np.ndarray) -> np.ndarray:
     """Vectors (..., 3) scaled to length 1 (zero ones left as they are)."""
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    n = np.sqrt(dot3(v, v))[..., None]
     return v / np.where(n > 0, n, 1.0)
 
 

@@ -240,7 +240,7 @@ def frame_stats(frame) -> dict:
 
 
 def lighting_stats(frame) -> dict:
-    """Shadow rays per hit pixel, the share of hit pixels the fast penumbra proved lit, time per
+    """Shadow rays per hit pixel, the shares of hit pixels the fast penumbra proved lit and in umbra, time per
     phase (lighting.py, summed over threads) and the expanded data sets' builds."""
     hit = frame.hit
     n = max(int(hit.sum()), 1)
@@ -250,6 +250,7 @@ def lighting_stats(frame) -> dict:
         klass = frame.penumbra[hit]
         out["proven_lit_share"] = float((klass == 0).sum()) / n
         out["sampled_share"] = float((klass == 1).sum()) / n
+        out["proven_umbra_share"] = float((klass == 2).sum()) / n
     if frame.shadow is not None:
         out["shadow"] = _summary(frame.shadow[hit])
     return out

@@ -13,7 +13,8 @@ import numpy as np
 from .picking import box_lines, hit_marker
 
 RAY_RGBA = {"lit": (1.0, 0.85, 0.25, 0.9), "occluded": (0.75, 0.3, 1.0, 0.9), "reflected": (0.3, 0.75, 1.0, 0.95),
-            "refracted": (0.25, 1.0, 0.55, 0.95), "penumbra_test": (1.0, 1.0, 1.0, 0.3)}
+            "refracted": (0.25, 1.0, 0.55, 0.95), "penumbra_test": (1.0, 1.0, 1.0, 0.3),
+            "umbra_test": (0.35, 0.35, 1.0, 0.5)}
 CHOSEN_RGBA = (1.0, 1.0, 1.0, 1.0)
 MISS_LENGTH = 0.5  # a missing ray is drawn this many eye distances long (it leaves the scene)
 
@@ -27,7 +28,7 @@ def ray_colour(ray) -> tuple:
 
 def ray_end(ray, view) -> np.ndarray:
     """Where the drawn segment of a ray ends (world coordinates)."""
-    if ray.kind in ("shadow", "penumbra_test"):
+    if ray.kind in ("shadow", "penumbra_test", "umbra_test"):
         return ray.position if ray.hit and ray.position is not None else ray.target
     if ray.hit:
         return ray.position

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from imgui_bundle import imgui
 
+from tracer.ray_tree import TESTS
+
 from .ray_lines import ray_colour
 from .ui_rows import clipped_rows
 
@@ -19,7 +21,7 @@ def _vec(v) -> str:
 
 def _cells(ray) -> tuple:
     return (str(ray.code), str(ray.depth), str(ray.light) if ray.light >= 0 else "-", ray.outcome(),
-            str(ray.effort) if ray.kind != "penumbra_test" else "-", _vec(ray.origin), _vec(ray.corner))
+            str(ray.effort) if ray.kind not in TESTS else "-", _vec(ray.origin), _vec(ray.corner))
 
 
 def _summary(tree) -> None:
@@ -30,6 +32,7 @@ def _summary(tree) -> None:
     imgui.text(f"shadow {shadow}, {tree.shadow_rays} shadow rays, {PENUMBRA_CLASS.get(tree.penumbra, '?')}")
     for e in tree.lights:
         proven = {True: ", proven lit", False: ", not proven lit", None: ""}[e["proven_lit"]]
+        proven += {True: ", proven umbra", False: ", not proven umbra", None: ""}[e.get("proven_umbra")]
         imgui.text_disabled(f"vertex {e['code']}, light {e['light']}: {e['visible']}/{e['samples']} samples "
                             f"visible{proven}")
 
@@ -71,6 +74,7 @@ def ray_tree_section(state) -> bool:
     changed = _rows(ins)
     chosen = ins.tree.rays[ins.ray] if 0 <= ins.ray < len(ins.tree.rays) else None
     if chosen is not None and chosen.steps is None and ins.ray > 0:
-        imgui.text_disabled("no subdivision trace for this ray" + (" (a penumbra test walks grown boxes)"
-                                                                   if chosen.kind == "penumbra_test" else ""))
+        why = {"penumbra_test": " (a penumbra test walks grown boxes)",
+               "umbra_test": " (an umbra test proves a patch covers the light)"}.get(chosen.kind, "")
+        imgui.text_disabled("no subdivision trace for this ray" + why)
     return toggled or changed
