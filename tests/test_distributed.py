@@ -109,13 +109,22 @@ def test_a_scheduler_without_workers_is_refused_not_waited_on(tmp_path, capsys, 
     assert "has no workers" in err and len(err.strip().splitlines()) == 1
 
 
-def test_study_points_on_the_cluster_score_as_local(client):
-    """Issue 14's target: a distributed study gives the same errors as a local one."""
+def test_study_units_on_the_cluster_score_as_local(client):
+    """Issue 14's target: a distributed study gives the same errors as a local one; psrt's points,
+    the coherence trials and the peers' points all run on the workers."""
     from tracer import study
+    from tracer.study_povray import available
     scene = load_scene(TEAPOT)
-    kwargs = dict(precisions=("f32",), coherence=False, tessellations=(), flatnesses=())
+    flatnesses = (0.01,) if available() else ()  # CI has no povray
+    kwargs = dict(precisions=("f32",), tessellations=(2, 8), flatnesses=flatnesses, candidates=("8x8",), rounds=1)
     here = study.run(scene, (12, 12), **kwargs)
-    there = study.run(scene, (12, 12), client=client, **kwargs)
-    strip = [{k: v for k, v in row.items() if k not in ("seconds", "contended")} for row in here["points"]]
-    assert strip == [{k: v for k, v in row.items() if k not in ("seconds", "contended")} for row in there["points"]]
-    assert all("contended" in row for row in there["points"]) and len(strip) > 10
+    seen = []
+    there = study.run(scene, (12, 12), client=client, progress=seen.append, **kwargs)
+    assert len(seen) == study.unit_count(scene, ("f32",), True, (2, 8), flatnesses) and seen[0] is None
+    timing = ("seconds", "contended", "povray_wall_cpu")
+    strip = [{k: v for k, v in row.items() if k not in timing} for row in here["points"]]
+    assert strip == [{k: v for k, v in row.items() if k not in timing} for row in there["points"]]
+    assert all("contended" in row for row in there["points"]) and len(strip) == 2 * 17 + 4 + len(flatnesses)
+    assert {row["series"] for row in there["points"]} >= {"embree first image", "embree per frame"}
+    trials = there["coherence"]["trials"]
+    assert [t["chosen"] for t in trials] == ["8x8"] * 4 and all("contended" in t for t in trials)

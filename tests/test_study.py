@@ -12,7 +12,8 @@ import pytest
 
 from psrt.cli import main
 from tracer import study
-from tracer.study_report import markdown, series_points, targets
+from tracer.study_coherence import Trial, run_trial, settings
+from tracer.study_report import format_targets, markdown, series_points, targets
 from tracer.scene import load_scene
 from tracer.study_peers import tessellate
 from tracer.study_povray import available, bicubic_nets, read_ppm16
@@ -146,8 +147,55 @@ def test_report_directory(tmp_path, capsys):
 
 def test_targets_read_off_the_results():
     pts = [{"series": "psrt float f32", "parameter": None, "mean_error": 1e-8, "seconds": 1.0, "holes": 0},
+           {"series": "embree first image", "parameter": 128, "mean_error": 2e-6, "seconds": 2.0, "holes": 0},
            {"series": "embree first image", "parameter": 256, "mean_error": 5e-7, "seconds": 8.0, "holes": 0},
            {"series": "povray first image", "parameter": 0.01, "mean_error": 1e-4, "seconds": 0.5, "holes": 3},
-           {"series": "psrt adaptive f32", "parameter": 0.5, "mean_error": 1e-4, "seconds": 0.4, "holes": 0}]
-    met = [ok for _, ok, _ in targets({"float32_floor": 6e-9, "points": pts})]
-    assert met == [True, False, True, True]   # 1.7 x floor; 50 x below embree; faster; faster, fewer holes
+           {"series": "psrt adaptive f32", "parameter": 2.0, "mean_error": 3e-4, "seconds": 0.1, "holes": 0},
+           {"series": "psrt adaptive f32", "parameter": 0.5, "mean_error": 1e-4, "seconds": 0.6, "holes": 0},
+           {"series": "psrt adaptive f32 8x8", "parameter": 0.5, "mean_error": 1e-4, "seconds": 0.4, "holes": 0}]
+    rows = targets({"float32_floor": 6e-9, "points": pts})
+    # 1.7 x floor; 50 x below embree, the floor 83 x; faster; 1/N^2 a check; the fastest adaptive point
+    # as accurate as POV-Ray (8x8 at 0.5 px, not the faster but coarser 2 px) is faster, with fewer holes
+    assert [ok for _, ok, _ in rows] == [True, False, True, None, True]
+    assert "83 x below that peer point, so 100 x is out of" in rows[1][2]
+    assert "4.00 x where 1/N^2 gives 4.00 x" in rows[3][2]
+    assert rows[4][2].startswith("psrt adaptive f32 8x8 at 0.5 px")
+    pts[-1]["mean_error"] = pts[-2]["mean_error"] = 2e-4        # none as accurate: not met
+    assert targets({"float32_floor": 6e-9, "points": pts})[-1][1] is False
+    assert "- check: the tessellation" in format_targets({"float32_floor": 6e-9, "points": pts})
+
+
+def test_coherence_settings_and_the_choice():
+    assert settings("8x8+cache") == {"bundle": "8x8", "cache": True}
+    assert settings("grid+mailbox") == {"accel": "grid", "mailbox": True}
+    for bad in ("8x8+grid", "mailbox", "1x1", "9x9", "bvh"):
+        with pytest.raises(ValueError, match=bad.replace("+", r"\+")):
+            settings(bad)
+    times = {"1x1": [3.0, 3.0, 3.0, 3.0], "4x4": [9.0, 2.0, 2.5, 2.0], "8x8": [9.0, 2.2, 2.1, 2.2]}  # warm-up first
+    seen = []
+
+    def trace_seconds(opts):
+        seen.append(opts.bundle)
+        return times[opts.bundle][sum(b == opts.bundle for b in seen) - 1]
+    trial = Trial("adaptive", "f32", 0.5, study.Options(threads=1, criterion="adaptive"), ("4x4", "8x8"), rounds=3)
+    out = run_trial(trace_seconds, trial)
+    assert seen == ["1x1", "4x4", "8x8"] * 4                     # one warm-up, then the settings take turns
+    assert out["seconds"] == {"plain": 3.0, "4x4": 2.0, "8x8": 2.2} and out["chosen"] == "4x4"
+    assert out["speedup"] == 1.5
+
+
+def test_coherence_series_use_the_chosen_setting(tmp_path):
+    out = tmp_path / "s.json"
+    assert main(["study", "--scheduler", "none", TEAPOT, "--size", "8x8", "--precisions", "f32", "--tessellations",
+                 "--flatnesses", "--coherence-candidates", "4x4+cache", "--coherence-rounds", "1",
+                 "--json", str(out), "-q"]) == 0
+    data = json.loads(out.read_text())
+    tried = data["coherence"]["trials"]
+    assert [(t["criterion"], t["chosen"]) for t in tried] == [(c, "4x4+cache") for c in study.SWEEPS]
+    assert set(tried[0]["seconds"]) == {"plain", "4x4+cache"} and data["coherence"]["rounds"] == 1
+    rows = {(p["series"], p["parameter"]): p for p in data["points"]}
+    assert len(rows) == len(data["points"]) == 2 * sum(map(len, study.SWEEPS.values()))
+    assert rows["psrt float f32 4x4+cache", None]["mean_error"] == rows["psrt float f32", None]["mean_error"]
+    text = markdown(data)
+    assert "| adaptive f32 | 0.5 px |" in text and "| 4x4+cache |" in text
+    assert main(["study", "--scheduler", "none", TEAPOT, "--coherence-candidates", "8x8+grid", "-q"]) == 2

@@ -15,6 +15,7 @@ import time
 
 from . import cli, memory, study
 from .options import PRECISIONS
+from .study_coherence import CANDIDATES, ROUNDS, settings
 from .study_peers import TESSELLATIONS
 from .study_povray import FLATNESSES
 
@@ -27,6 +28,14 @@ def positive_float(text: str) -> float:
     if not value > 0 or math.isinf(value):
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
     return value
+
+
+def coherence_setting(text: str) -> str:
+    try:
+        settings(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    return text
 
 
 REPORT_FILES = ("report.md", "study.png", "study.json")  # what --report DIR writes
@@ -89,24 +98,24 @@ def cmd_study(args) -> int:
         cli._import_losses(args, scene)
         # the first frame, its reference and the truth are held while each point's frame is traced
         memory.check_render(*args.size, reference=True, frames=3, limit=args.memory_limit)
-        total = len(study.points(study.scene_size(scene), precisions=args.precisions,
-                                 coherence=not args.no_coherence)) + 1 + len(args.tessellations) + len(args.flatnesses)
+        total = study.unit_count(scene, args.precisions, not args.no_coherence, args.tessellations, args.flatnesses)
         from tqdm import tqdm
-        with tqdm(total=total, desc="study", unit="point", file=sys.stderr, disable=args.quiet,
+        with tqdm(total=total, desc="study", unit="unit", file=sys.stderr, disable=args.quiet,
                   leave=False) as bar:
             bar.set_postfix_str("truth: float32 rays, float64 reference, Newton")
 
-            def step(point):
+            def step(label):
                 bar.update(1)
-                if point is not None:
-                    bar.set_postfix_str(f"{point.series} {'' if point.parameter is None else point.parameter}")
+                if label is not None:
+                    bar.set_postfix_str(label)
             from .distributed import describe, open_client
             start = time.perf_counter()
             with open_client(args.scheduler, args.workers) as client:
                 where = describe(client)
                 result = study.run(scene, args.size, precisions=args.precisions, coherence=not args.no_coherence,
                                    runs=args.runs, tessellations=args.tessellations,
-                                   flatnesses=args.flatnesses, progress=step, client=client)
+                                   flatnesses=args.flatnesses, progress=step, client=client,
+                                   candidates=args.coherence_candidates, rounds=args.coherence_rounds)
             result["wall_seconds"], result["ran_on"] = time.perf_counter() - start, where
         result["scene"] = str(args.scene)
         from .study_report import chart_png, markdown
@@ -134,7 +143,14 @@ def add_study_command(sub) -> None:
     p.add_argument("--precisions", nargs="+", choices=PRECISIONS, default=list(PRECISIONS), metavar="P",
                    help=f"precisions of psrt's series (default: {' '.join(PRECISIONS)})")
     p.add_argument("--no-coherence", action="store_true",
-                   help="leave out the series with the fastest coherence setting (8x8 bundles, cache)")
+                   help="leave out the coherence trials and the series with the fastest coherence setting")
+    p.add_argument("--coherence-candidates", nargs="+", type=coherence_setting, default=list(CANDIDATES),
+                   metavar="SPEC", help="coherence settings tried against the plain one for each criterion and "
+                   "precision, the fastest giving that criterion's coherence series: a bundle (4x4, 8x8, ...), "
+                   "'cache', a structure (grid, kdtree) and 'mailbox', joined by '+' (default: "
+                   f"{' '.join(CANDIDATES)})")
+    p.add_argument("--coherence-rounds", type=cli.positive_int, default=ROUNDS,
+                   help=f"timed rounds of a coherence trial, the settings taking turns (default: {ROUNDS})")
     p.add_argument("--tessellations", nargs="*", type=cli.positive_int, default=list(TESSELLATIONS), metavar="N",
                    help="the tessellation peer's N x N quads per patch, traced with Embree (none: leave the peer "
                         f"out; default: {' '.join(map(str, TESSELLATIONS))})")

@@ -8,8 +8,8 @@ finishes. Items are small (paths and option records): each worker loads what it 
 
 Tasks are pure (the same item gives the same result), so a worker that dies has its tasks re-run
 on another worker by the scheduler. Timed items (`timed=True`) run one at a time per worker and
-come back as Timed records, flagged `contended` when the process got under CONTENDED_CPU of the
-wall time: another process had its core.
+come back as Timed records, flagged `contended` when the process (with the children it waited for)
+got under CONTENDED_CPU of the wall time: another process had its core.
 
 `psrt study` maps its points the same way: `with open_client(args.scheduler) as client:
 results = map_items(run_point, points, client, progress=bar_step, timed=True)`, where run_point
@@ -40,11 +40,18 @@ class Timed:
         return self.wall > 0.05 and self.cpu < CONTENDED_CPU * self.wall  # too short to judge: not flagged
 
 
+def process_cpu() -> float:
+    """CPU seconds of this process and of its children waited for (a POV-Ray peer point runs povray)."""
+    import resource
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.process_time() + children.ru_utime + children.ru_stime
+
+
 def run_timed(fn, item) -> Timed:
-    """fn(item) with its wall and process CPU time."""
-    wall, cpu = time.perf_counter(), time.process_time()
+    """fn(item) with its wall and CPU time (the process's and its children's)."""
+    wall, cpu = time.perf_counter(), process_cpu()
     value = fn(item)
-    return Timed(value, time.perf_counter() - wall, time.process_time() - cpu)
+    return Timed(value, time.perf_counter() - wall, process_cpu() - cpu)
 
 
 def check_address(scheduler: str) -> str:

@@ -1,30 +1,31 @@
-"""psrt's study points on Dask workers (`psrt study --scheduler`, tracer/distributed.py).
+"""The study's work units on Dask workers (`psrt study --scheduler`, tracer/distributed.py).
 
-A point's item is small: the scene's path, the image size, the point and the runs. Each worker
-process loads the scene and prepares the study (the float32 rays, their float64 reference and the
-Newton-polished truth) once, then runs its points one at a time (timed items: one per worker, so
-timed work never shares a core) and returns each point's score. The truth is a deterministic
-function of the scene and the size, so every worker scores against the same bits as the client.
+A unit's item is small: the scene's path, the image size, the unit (a coherence trial, a psrt point
+or a peer's point: study.run_unit) and the runs. Each worker process loads the scene and prepares
+the study (the float32 rays, their float64 reference and the Newton-polished truth) once, then runs
+its units one at a time (timed items: one per worker, so timed work never shares a core) and
+returns each unit's result. The truth is a deterministic function of the scene and the size, so
+every worker scores against the same bits as the client.
 """
 from __future__ import annotations
 
 import os
 from dataclasses import dataclass
 
-from .study import Point, prepare_study, run_point
+from .study import prepare_study, run_unit
 
 _STUDIES: dict = {}
 
 
 @dataclass(frozen=True)
-class PointItem:
-    """One study point as a task: where the scene is (absolute path, and the path as the user gave
-    it), the image size, the point and its timed runs."""
+class UnitItem:
+    """One study unit as a task: where the scene is (absolute path, and the path as the user gave
+    it), the image size, the unit and its timed runs."""
 
     path: str
     label: str
     size: tuple
-    point: Point
+    unit: object
     runs: int
 
 
@@ -40,15 +41,15 @@ def study_here(path: str, label: str, size: tuple):
     return held
 
 
-def run_point_item(item: PointItem):
-    """The score of one point, on whichever process runs it."""
-    return run_point(study_here(item.path, item.label, item.size), item.point, item.runs)
+def run_unit_item(item: UnitItem):
+    """The result of one unit, on whichever process runs it."""
+    return run_unit(study_here(item.path, item.label, item.size), item.unit, item.runs)
 
 
-def run_points(scene, size, chosen: list, runs: int, client, progress=None) -> list:
-    """[(Score, contended)] of the chosen points on the client's workers, in their order;
-    progress(point) as each finishes."""
+def run_units(scene, size, units: list, runs: int, client, progress=None) -> list:
+    """[(result, contended)] of the units on the client's workers, in their order; progress(label) as
+    each finishes."""
     from .distributed import map_items
-    items = [PointItem(os.path.abspath(scene.path), str(scene.path), tuple(size), p, runs) for p in chosen]
-    step = None if progress is None else (lambda i, timed: progress(chosen[i]))
-    return [(t.value, t.contended) for t in map_items(run_point_item, items, client, progress=step, timed=True)]
+    items = [UnitItem(os.path.abspath(scene.path), str(scene.path), tuple(size), u, runs) for u in units]
+    step = None if progress is None else (lambda i, timed: progress(units[i].label))
+    return [(t.value, t.contended) for t in map_items(run_unit_item, items, client, progress=step, timed=True)]

@@ -61,8 +61,14 @@ def embree_scene(scene, n: int):
     return RayMeshIntersector(mesh), face_patch
 
 
+_WARM = []
+
+
 def warm_up_embree() -> None:
-    """Load Embree and trimesh's ray code once, so no point's time includes it."""
+    """Load Embree and trimesh's ray code once per process, so no point's time includes it."""
+    if _WARM:
+        return
+    _WARM.append(True)
     import trimesh
     from trimesh.ray.ray_pyembree import RayMeshIntersector
     RayMeshIntersector(trimesh.creation.icosahedron()).intersects_id(

@@ -6,11 +6,13 @@ through the same pixel centres (they differ from psrt's float32 rays by those ra
 Each patch's pigment writes, without lighting, into a 16-bit PPM: red the depth's high 16 bits,
 green its low 16 bits (the distance from the eye over the scene's depth range, to 32 bits), blue
 the patch's index + 1; the hit point is read back as eye + depth along psrt's ray. Timed as a
-first image: the CPU time of the povray process (parse, build, trace; every thread).
+first image: the CPU time of the povray process (parse, build, trace), rendering with one thread
+(+WT1) as psrt's points do, so that a point on a Dask worker keeps to its worker's core.
 """
 from __future__ import annotations
 
 import os
+import re
 import resource
 import shutil
 import subprocess
@@ -23,6 +25,10 @@ from .fixed_order import norm
 FLATNESSES = (0.1, 0.01, 1e-3, 1e-4)
 STEPS = 8            # u_steps and v_steps: at most 2^8 x 2^8 triangles per patch
 LEVELS = 65535       # a 16-bit channel
+# A phase of povray's statistics: '(0.123 seconds)' of wall time, then 'using 1 thread(s) with 0.120
+# CPU-seconds total'. The povray process also idles about 0.6 s of wall time around its phases, so
+# only the phases tell whether its core was shared.
+PHASE = re.compile(r"\(([0-9.]+) seconds\)\s+using \d+ thread\(s\) with ([0-9.]+) CPU-seconds")
 
 
 def available() -> bool:
@@ -106,8 +112,9 @@ def read_ppm16(path) -> np.ndarray:
 
 
 def trace(scene, view, origins, dirs, flatness: float):
-    """((hit, position, patch), CPU seconds of povray) of the scene at `flatness`; positions on
-    psrt's rays (origins, dirs (H, W, 3)) at POV-Ray's depths."""
+    """((hit, position, patch), CPU seconds of povray, [wall, CPU] seconds of povray's parse, bounding
+    and trace phases as it reports them) of the scene at `flatness`; positions on psrt's rays
+    (origins, dirs (H, W, 3)) at POV-Ray's depths."""
     nets, why = bicubic_nets(scene)
     if nets is None:
         raise ValueError(f"POV-Ray peer: {why}")
@@ -120,14 +127,15 @@ def trace(scene, view, origins, dirs, flatness: float):
         with open(src, "w") as f:
             f.write(pov_source(nets, view, w, h, depth0, 2 * radius, flatness))
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        subprocess.run(["povray", f"+I{src}", f"+O{out}", f"+W{w}", f"+H{h}", "+FP16", "-A", "-D", "-P",
-                        "File_Gamma=1.0", "-GA"],
-                       check=True, capture_output=True)
+        done = subprocess.run(["povray", f"+I{src}", f"+O{out}", f"+W{w}", f"+H{h}", "+FP16", "+WT1", "-A", "-D",
+                               "-P", "File_Gamma=1.0"], check=True, capture_output=True)
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         rgb = read_ppm16(out).astype(np.int64)
     seconds = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    phases = PHASE.findall(done.stderr.decode(errors="replace"))
+    wall_cpu = [sum(float(w) for w, _ in phases), sum(float(c) for _, c in phases)]
     hit = rgb[..., 2] > 0
     depth = depth0 + (rgb[..., 0] + rgb[..., 1] / LEVELS) / LEVELS * 2 * radius
     unit = dirs / np.sqrt(np.sum(dirs * dirs, axis=-1, keepdims=True))
     position = np.where(hit[..., None], origins + depth[..., None] * unit, np.nan)
-    return (hit, position, np.where(hit, rgb[..., 2] - 1, -1)), seconds
+    return (hit, position, np.where(hit, rgb[..., 2] - 1, -1)), seconds, wall_cpu
