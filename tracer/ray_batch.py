@@ -68,8 +68,8 @@ def make_batch_kernel(variant):
 # the m points (S = count), the point being tested (state[0]) and the walk (state[1]: 0 boxes
 # alone, 1 with the samples' searches; state[2] the grown boxes holding the origin met so far;
 # state[3] 1 where one cone search may stand for the samples' searches: cone_search.py; state[4]
-# the boxes the point's cone searches have computed), the
-# sample's ray and hit records, and the light's half extents (3,).
+# the boxes the point's cone searches have computed; state[5], state[6]: MAX_NEAR, CONE_BOXES),
+# the sample's ray and hit records, and the light's half extents (3,).
 PenumbraContext = namedtuple("PenumbraContext", "leaves trims grown samples count state ray hit counts half")
 
 
@@ -88,11 +88,11 @@ def _penumbra_visit(p, ctx, trims, ray, hit, q, sl, trace):
     does (the point's own surface, its neighbours) is passed by in the first walk (state[1] = 0)
     and settled in the second by the samples' own searches of that leaf."""
     ctx.state[2] += 1
-    if ctx.state[2] > MAX_NEAR:  # too many boxes on the way to the light: sample the point
+    if ctx.state[2] > ctx.state[5]:  # too many boxes on the way to the light: sample the point
         hit[H_TIN] = ray[R_TMIN]
         return 1
     if CONE and ctx.state[3] == 1:  # noqa: F821
-        maybe, spent = cone(p, ctx.leaves, ctx.trims, ray, ctx.half, q, sl, CONE_BOXES - ctx.state[4])  # noqa: F821
+        maybe, spent = cone(p, ctx.leaves, ctx.trims, ray, ctx.half, q, sl, ctx.state[6] - ctx.state[4])  # noqa: F821
         ctx.state[4] += spent
         if maybe:
             hit[H_TIN] = ray[R_TMIN]
@@ -212,7 +212,7 @@ class BatchTracer:
         if m:
             inp = self.inputs
             ctx = PenumbraContext(inp.scene[0], inp.scene[1], grown, samples, count,
-                                  np.array([0, 0, 0, int(cone), 0], np.int64), np.zeros(len(self.scratch().ray.ray)),
+                                  np.array([0, 0, 0, int(cone), 0, MAX_NEAR, CONE_BOXES], np.int64), np.zeros(len(self.scratch().ray.ray)),
                                   np.zeros(len(self.scratch().ray.hit)), np.zeros(COUNTER_LEN, np.int64),
                                   np.ascontiguousarray(half, np.float64))
             scratch = self.scratch()._replace(stack=WalkStack(np.zeros(stack, np.int32), np.zeros(stack)))
