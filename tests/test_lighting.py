@@ -289,8 +289,10 @@ def test_bench_penumbra_sweep_prints_the_table(capsys, tmp_path):
     out = tmp_path / "sweep.json"
     assert main(["bench", "--penumbra-sweep", "--size", "16x16", "--runs", "1", "-q", "--json", str(out)]) == 0
     table = capsys.readouterr().out
-    assert table.count(" yes") == 4 and "the scene's own light" in table
+    from tracer.bench_penumbra import RADII
+    assert table.count(" yes") == len(RADII) and "the scene's own light" in table and "umbra" in table
     import json
     rows = json.loads(out.read_text())["rows"]
-    assert [r["radius"] for r in rows] == [0.02, 0.05, 0.1, 0.2] and all(r["identical"] for r in rows)
+    assert [r["radius"] for r in rows] == list(RADII) and all(r["identical"] for r in rows)
+    assert all(set(r["seconds"]) == {"off", "expanded", "tmax", "umbra"} for r in rows)
     assert main(["bench", "--penumbra-sweep", "--scene", str(tmp_path / "none.json")]) == 2

@@ -20,7 +20,7 @@ from .geometry import prepare
 from .options import PENUMBRAS
 from .render import render
 
-RADII = (0.02, 0.05, 0.1, 0.2)
+RADII = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2)
 
 
 def _cpu(f):
