@@ -23,6 +23,7 @@ from .bezier import (control_box, control_box_rational, restrict, restrict_err, 
                      split_u_linear, split_v, split_v_cubic, split_v_linear)
 from .ray import R_D, R_N1, R_N2, R_O, slab
 from .records import PatchInfo
+from .simd import dist_range_cubic
 
 # Split heuristics (codes as in options.SPLIT_CODE).
 SPLIT_LENGTH, SPLIT_CROSS = 0, 1
@@ -252,13 +253,16 @@ def hull_off_plane(sl, s, pa, ray, n0, n1, n2):
     rel1 = mf[s, M_OX + 1] - ray[R_O + 1]
     rel2 = mf[s, M_OX + 2] - ray[R_O + 2]
     offset = rel0 * n0 + rel1 * n1 + rel2 * n2
-    lo = math.inf
-    hi = -math.inf
-    for k in range(pa.count):
-        x, y, z = point(buf, s, k, pa.rational)
-        dist = x * n0 + y * n1 + z * n2
-        lo = min(lo, dist)
-        hi = max(hi, dist)
+    if pa.cubic:  # the 16 points in vectors (simd; the same values)
+        lo, hi = dist_range_cubic(buf, s, n0, n1, n2)
+    else:
+        lo = math.inf
+        hi = -math.inf
+        for k in range(pa.count):
+            x, y, z = point(buf, s, k, pa.rational)
+            dist = x * n0 + y * n1 + z * n2
+            lo = min(lo, dist)
+            hi = max(hi, dist)
     slack = ((mf[s, M_E] + sub) * abs(n0) + (mf[s, M_E + 1] + sub) * abs(n1) + (mf[s, M_E + 2] + sub) * abs(n2)
              + 2.0 ** -51 * (abs(rel0) + abs(rel1) + abs(rel2) + max(abs(lo), abs(hi))))
     return offset + lo > slack or offset + hi < -slack
