@@ -88,6 +88,16 @@ def ahead(tin, row, hits, m):
 
 
 @njit(cache=True, nogil=True, inline='always')
+def _meets(box, ox, oy, oz, br, row, r):
+    """Ray r against a slot's box (offset ox, oy, oz): its interval into tin[row, r], tout[row, r];
+    does it meet the box before its own closest hit?"""
+    ok, t_in, t_out = slab(box, ox, oy, oz, br.lrays[r])
+    br.tin[row, r] = t_in
+    br.tout[row, r] = t_out
+    return ok and t_in < br.hits[r, H_TIN]
+
+
+@njit(cache=True, nogil=True, inline='always')
 def open_rays(sl, s, br, row, m):
     """Slab-test slot s's box against the rays of m (intervals into tin[row], tout[row]); the
     rays that meet it before their own closest hit."""
@@ -99,12 +109,28 @@ def open_rays(sl, s, br, row, m):
     while m != ZERO:
         r = lowest_bit(m)
         m &= m - ONE
-        ok, t_in, t_out = slab(box, ox, oy, oz, br.lrays[r])
-        br.tin[row, r] = t_in
-        br.tout[row, r] = t_out
-        if ok and t_in < br.hits[r, H_TIN]:
+        if _meets(box, ox, oy, oz, br, row, r):
             alive |= bit(r)
     return alive
+
+
+@njit(cache=True, nogil=True, inline='always')
+def open_pair(sl, a, b, br, row_a, row_b, m):
+    """open_rays for the halves a and b in one pass over the rays (each ray's two slab tests side
+    by side); the rays of each half."""
+    alive_a = ZERO
+    alive_b = ZERO
+    box_a = sl.box[a]
+    box_b = sl.box[b]
+    mf = sl.mf
+    while m != ZERO:
+        r = lowest_bit(m)
+        m &= m - ONE
+        if _meets(box_a, mf[a, M_OX], mf[a, M_OX + 1], mf[a, M_OX + 2], br, row_a, r):
+            alive_a |= bit(r)
+        if _meets(box_b, mf[b, M_OX], mf[b, M_OX + 1], mf[b, M_OX + 2], br, row_b, r):
+            alive_b |= bit(r)
+    return alive_a, alive_b
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -125,8 +151,7 @@ def push_halves(sl, a, b, sp, pa, br, go, direction):
     half on top. Returns the new stack height and the halves no ray keeps (-1 for none)."""
     row_a = br.row[sp]
     row_b = br.row[sp + 1]
-    keep_a = open_rays(sl, a, br, row_a, go)
-    keep_b = open_rays(sl, b, br, row_b, go)
+    keep_a, keep_b = open_pair(sl, a, b, br, row_a, row_b, go)
     both = keep_a & keep_b
     while both != ZERO:  # as sort_halves: the far half across the seam plane and the ray's planes first
         r = lowest_bit(both)
