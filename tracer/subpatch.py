@@ -251,6 +251,22 @@ def point(buf, s, k, rational):
     return np.float64(buf[s, 0, k]), np.float64(buf[s, 1, k]), np.float64(buf[s, 2, k])
 
 
+@njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
+def hull_range(buf, s, count, rational, cubic, n0, n1, n2):
+    """The least and greatest x n0 + y n1 + z n2 over slot s's control points (cubic: an integral
+    bicubic slot, its 16 points in vectors: simd, the same values)."""
+    if cubic:
+        return dist_range_cubic(buf, s, n0, n1, n2)
+    lo = math.inf
+    hi = -math.inf
+    for k in range(count):
+        x, y, z = point(buf, s, k, rational)
+        dist = x * n0 + y * n1 + z * n2
+        lo = min(lo, dist)
+        hi = max(hi, dist)
+    return lo, hi
+
+
 @njit(cache=True, nogil=True, inline='always')
 def hull_off_plane(sl, s, pa, ray, n0, n1, n2):
     """Is the convex hull of slot s's control points (widened by the error bounds) wholly on one
@@ -262,16 +278,7 @@ def hull_off_plane(sl, s, pa, ray, n0, n1, n2):
     rel1 = mf[s, M_OX + 1] - ray[R_O + 1]
     rel2 = mf[s, M_OX + 2] - ray[R_O + 2]
     offset = rel0 * n0 + rel1 * n1 + rel2 * n2
-    if pa.cubic:  # the 16 points in vectors (simd; the same values)
-        lo, hi = dist_range_cubic(buf, s, n0, n1, n2)
-    else:
-        lo = math.inf
-        hi = -math.inf
-        for k in range(pa.count):
-            x, y, z = point(buf, s, k, pa.rational)
-            dist = x * n0 + y * n1 + z * n2
-            lo = min(lo, dist)
-            hi = max(hi, dist)
+    lo, hi = hull_range(buf, s, pa.count, pa.rational, pa.cubic, n0, n1, n2)
     slack = ((mf[s, M_E] + sub) * abs(n0) + (mf[s, M_E + 1] + sub) * abs(n1) + (mf[s, M_E + 2] + sub) * abs(n2)
              + 2.0 ** -51 * (abs(rel0) + abs(rel1) + abs(rel2) + max(abs(lo), abs(hi))))
     return offset + lo > slack or offset + hi < -slack
