@@ -49,10 +49,11 @@ SUB_ERR_BITS = 8    # float64: a split's rounding stays below 2^-(bits - 8) of t
 # Calls or inlines. numba inlines an inline='always' helper into its own IR once per call site,
 # and its type inference, SSA and lowering then cost more than linearly in the kernel's size; a
 # plain call is typed and lowered once, and LLVM still inlines it where that pays. So leaf
-# operations used at several call sites are calls (_CALLED: point, raw_box, widen, snap_*,
+# operations used at several call sites are calls (_CALLED: point, hull_range, raw_box, widen, snap_*,
 # ulp), and so are the rare re-centring and re-deriving (_COLD); operations given a variant flag as an argument stay inlined, so that the
 # flag stays a constant their branches are pruned by (split, tighten, open_child). The hull and
-# slab tests stay inlined too: LLVM leaves them as calls, which cost the search 8 %.
+# slab tests stay inlined too (LLVM leaves them as calls, which cost the search 8 %), but for the
+# hull's loop over the points (hull_range: inlined at every hull test it lengthened cold compiles).
 
 
 def max_depth_for(precision_bits: int) -> int:
