@@ -261,6 +261,44 @@ def test_python_cubic_split_bit_identical_to_simd(dtype, axis):
             assert _same_bits(box, box_py), f"case {case}: boxes differ"
 
 
+def _dist_range_loop(buf, s, n0, n1, n2):
+    """subpatch.hull_off_plane's scalar loop over 16 points, as numba runs it (min, max: keep the
+    accumulator unless the new value is smaller, larger)."""
+    lo, hi = math.inf, -math.inf
+    for k in range(16):
+        d = float(buf[s, 0, k]) * n0 + float(buf[s, 1, k]) * n1 + float(buf[s, 2, k]) * n2
+        lo = d if d < lo else lo
+        hi = d if d > hi else hi
+    return lo, hi
+
+
+@functools.cache
+def _dist_range_jit():
+    from numba import njit
+    return njit(lambda buf, s, n0, n1, n2: simd.dist_range_cubic(buf, s, n0, n1, n2))
+
+
+def _dist_range_compiled(*args):
+    return _dist_range_jit()(*args)
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_hull_extent_in_vectors_is_the_scalar_loops(dtype):
+    """simd.dist_range_cubic (compiled, and its numpy fallback) returns the scalar loop's least and
+    greatest distance across a plane, NaNs skipped, equal up to the sign of a zero."""
+    rng = np.random.default_rng(61)
+    with np.errstate(invalid="ignore", over="ignore"):
+        for case in range(300):
+            buf = np.zeros((2, 4, 16), dtype)
+            buf[1, :3] = _awkward_cubic_points(rng, dtype) if case % 2 else rng.normal(0, 10, (3, 16)).astype(dtype)
+            n = rng.normal(size=3)
+            n /= np.linalg.norm(n)
+            want = _dist_range_loop(buf, 1, *n)
+            for got in (_dist_range_compiled(buf, 1, *n), simd.dist_range_cubic_python(buf, 1, *n)):
+                for w, g in zip(want, got):
+                    assert w == g or (math.isnan(w) and math.isnan(g)), (case, want, got)
+
+
 @pytest.mark.parametrize("dtype", DTYPES)
 @pytest.mark.parametrize("degree", [(3, 3), (1, 1), (2, 5), (9, 7), (15, 15)])
 def test_sub_patch_boxes_inside_parent(dtype, degree):

@@ -26,7 +26,7 @@ import numpy as np
 
 from .cell_walk import make_grid_walk, make_kd_walk
 from .jit import njit, specialise
-from .ray import H_TIN, R_BUDGET, slab
+from .ray import H_TIN, NO_SHIFT, R_BUDGET, slab
 from .records import C_BOX_TESTS, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES, C_UNRESOLVED
 
 BvhNodes = namedtuple("BvhNodes", "node_box node_child leaf_first leaf_count items")
@@ -84,7 +84,7 @@ def _bvh_walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts):
     node_box = agg.node_box
     node_child = agg.node_child
     t_max = hit[H_TIN]
-    ok, t_in, _ = slab(node_box[0], 0.0, 0.0, 0.0, ray)
+    ok, t_in, _ = slab(node_box[0], NO_SHIFT, NO_SHIFT, NO_SHIFT, ray)
     counts[C_BOX_TESTS] += 1
     if node_child[0, 0] < 0:
         counts[C_SURFACES] += agg.leaf_count[0]
@@ -114,8 +114,8 @@ def _bvh_walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts):
                 return
             continue
         right = node_child[node, 1]
-        ok_l, tl, _ = slab(node_box[left], 0.0, 0.0, 0.0, ray)
-        ok_r, tr, _ = slab(node_box[right], 0.0, 0.0, 0.0, ray)
+        ok_l, tl, _ = slab(node_box[left], NO_SHIFT, NO_SHIFT, NO_SHIFT, ray)
+        ok_r, tr, _ = slab(node_box[right], NO_SHIFT, NO_SHIFT, NO_SHIFT, ray)
         counts[C_BOX_TESTS] += 2
         for child in (left, right):  # a leaf's box is its patches' box (one patch a leaf)
             if node_child[child, 0] < 0:

@@ -252,31 +252,38 @@ def evaluate(pts, m, n, u, v, ncoord, scratch, out):
         _bernstein_row(m - 1, u, du)
     if n > 0:
         _bernstein_row(n - 1, v, dv)
-    stride = m + 1
     for c in range(ncoord):
         a = pts[c]
         s = 0.0
         for j in range(n + 1):
             for i in range(m + 1):
-                s += bu[i] * bv[j] * a[j * stride + i]
+                s += bu[i] * bv[j] * a[j * (m + 1) + i]
         out[0, c] = s
-        su = 0.0
-        for j in range(n + 1):
-            for i in range(m):
-                su += du[i] * bv[j] * (a[j * stride + i + 1] - a[j * stride + i])
-        out[1, c] = m * su
-        sv = 0.0
-        for j in range(n):
-            for i in range(m + 1):
-                sv += bu[i] * dv[j] * (a[(j + 1) * stride + i] - a[j * stride + i])
-        out[2, c] = n * sv
-        suv = 0.0
-        for j in range(n):
-            for i in range(m):
-                diff = (a[(j + 1) * stride + i + 1] - a[(j + 1) * stride + i]
-                        - a[j * stride + i + 1] + a[j * stride + i])
-                suv += du[i] * dv[j] * diff
-        out[3, c] = m * n * suv
+        tangents(a, m, n, bu, bv, du, dv, c, out)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def tangents(a, m, n, bu, bv, du, dv, c, out):
+    """dS/du, dS/dv and d2S/dudv of coordinate c (points a) into out[1:4, c], from the Bernstein
+    rows of degrees m, n (bu, bv) and m - 1, n - 1 (du, dv); see evaluate."""
+    stride = m + 1
+    su = 0.0
+    for j in range(n + 1):
+        for i in range(m):
+            su += du[i] * bv[j] * (a[j * stride + i + 1] - a[j * stride + i])
+    out[1, c] = m * su
+    sv = 0.0
+    for j in range(n):
+        for i in range(m + 1):
+            sv += bu[i] * dv[j] * (a[(j + 1) * stride + i] - a[j * stride + i])
+    out[2, c] = n * sv
+    suv = 0.0
+    for j in range(n):
+        for i in range(m):
+            diff = (a[(j + 1) * stride + i + 1] - a[(j + 1) * stride + i]
+                    - a[j * stride + i + 1] + a[j * stride + i])
+            suv += du[i] * dv[j] * diff
+    out[3, c] = m * n * suv
 
 
 @njit(cache=True, nogil=True, _nrt=False)
@@ -291,6 +298,12 @@ def normal_at(pts, m, n, u, v, rational, scratch, d, out):
     Returns False if no normal could be found (a fully degenerate patch).
     """
     evaluate(pts, m, n, u, v, 4 if rational else 3, scratch, d)
+    return normal_from(d, u, v, rational, out)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def normal_from(d, u, v, rational, out):
+    """normal_at's normal from the derivatives evaluate wrote into d (see normal_at)."""
     if rational:
         # P = S W  =>  S_u = (P_u - S W_u) / W,  S_uv = (P_uv - S_u W_v - S_v W_u - S W_uv) / W
         w = d[0, 3]

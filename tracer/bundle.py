@@ -24,9 +24,10 @@ import numpy as np
 from .aggregate import BvhNodes  # noqa: F401 (the record the walk reads)
 from .drivers import WIDE_BITS, wide_leaves, wide_slots
 from .jit import njit, specialise
-from .ray import H_TIN, RAY_LEN, R_O, slab
+from .ray import H_TIN, NO_SHIFT, RAY_LEN, R_O, slab
 from .records import C_BOX_TESTS, C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES
-from .search_steps import halve, hull_accepts, judge, report, root_at, tighten, trim_accepts, trim_state
+from .search_steps import ADAPTIVE, halve, hull_accepts, judge_known, report, root_at, tighten, trim_accepts
+from .search_steps import trim_state
 from .subpatch import I_DEPTH, I_LAST, I_STALLED, M_DPAR, M_OX, M_TIN, M_TOUT, hull_hit, hull_off_plane, patch_info
 from .subpatch import seam_plane
 from .surface_cache import S_DEPTH, S_FIRST, S_HITS, S_MISSES, copy_slot, take_pair, touch
@@ -37,11 +38,13 @@ MAX_RAYS = 64
 
 # A bundle's rays: rays and lrays (K, RAY_LEN) (lrays: moved into the searched patch's frame),
 # hits (K, HIT_LEN), counts (K, COUNTER_LEN) int64, lengths (K,) |direction|; per position of
-# the sub-patch stack: slot (S,) int32, mask (S,) uint64 and the rays' slab intervals tin, tout
-# (S, K); free (S,) int32 working slots not in use; the BVH walk's stack: node (D,) int32,
-# node_mask (D,) uint64, node_tin (D, K).
-BundleRays = namedtuple("BundleRays", "rays lrays hits counts lengths slot mask tin tout free node node_mask "
-                        "node_tin")
+# the sub-patch stack: slot (S,) int32, mask (S,) uint64 and row (S,) int32, the row of tin, tout
+# (S, K) holding the rays' slab intervals; free (S,) int32 working slots not in use; the BVH walk's
+# stack: node (D,) int32, node_mask (D,) uint64, node_row (D,) int32, the row of node_tin (D, K).
+# row and node_row are permutations: moving an entry's intervals to another position moves its
+# row index, not K floats.
+BundleRays = namedtuple("BundleRays", "rays lrays hits counts lengths slot mask row tin tout free node node_mask "
+                        "node_row node_tin")
 
 if numba.config.DISABLE_JIT:
     def _trailing_zeros(m):
@@ -85,6 +88,16 @@ def ahead(tin, row, hits, m):
 
 
 @njit(cache=True, nogil=True, inline='always')
+def _meets(box, ox, oy, oz, br, row, r):
+    """Ray r against a slot's box (offset ox, oy, oz): its interval into tin[row, r], tout[row, r];
+    does it meet the box before its own closest hit?"""
+    ok, t_in, t_out = slab(box, ox, oy, oz, br.lrays[r])
+    br.tin[row, r] = t_in
+    br.tout[row, r] = t_out
+    return ok and t_in < br.hits[r, H_TIN]
+
+
+@njit(cache=True, nogil=True, inline='always')
 def open_rays(sl, s, br, row, m):
     """Slab-test slot s's box against the rays of m (intervals into tin[row], tout[row]); the
     rays that meet it before their own closest hit."""
@@ -96,12 +109,28 @@ def open_rays(sl, s, br, row, m):
     while m != ZERO:
         r = lowest_bit(m)
         m &= m - ONE
-        ok, t_in, t_out = slab(box, ox, oy, oz, br.lrays[r])
-        br.tin[row, r] = t_in
-        br.tout[row, r] = t_out
-        if ok and t_in < br.hits[r, H_TIN]:
+        if _meets(box, ox, oy, oz, br, row, r):
             alive |= bit(r)
     return alive
+
+
+@njit(cache=True, nogil=True, inline='always')
+def open_pair(sl, a, b, br, row_a, row_b, m):
+    """open_rays for the halves a and b in one pass over the rays (each ray's two slab tests side
+    by side); the rays of each half."""
+    alive_a = ZERO
+    alive_b = ZERO
+    box_a = sl.box[a]
+    box_b = sl.box[b]
+    mf = sl.mf
+    while m != ZERO:
+        r = lowest_bit(m)
+        m &= m - ONE
+        if _meets(box_a, mf[a, M_OX], mf[a, M_OX + 1], mf[a, M_OX + 2], br, row_a, r):
+            alive_a |= bit(r)
+        if _meets(box_b, mf[b, M_OX], mf[b, M_OX + 1], mf[b, M_OX + 2], br, row_b, r):
+            alive_b |= bit(r)
+    return alive_a, alive_b
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -116,24 +145,19 @@ def nearest(tin, row, m):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def swap_rows(a, i, j):
-    for k in range(a.shape[1]):
-        a[i, k], a[j, k] = a[j, k], a[i, k]
-
-
-@njit(cache=True, nogil=True, inline='always')
 def push_halves(sl, a, b, sp, pa, br, go, direction):
     """The halves a and b (b past the seam) at stack positions sp and sp + 1 for the rays of `go`:
     each ray's intervals, the single ray's hull tests where it meets both, the bundle's nearer
     half on top. Returns the new stack height and the halves no ray keeps (-1 for none)."""
-    keep_a = open_rays(sl, a, br, sp, go)
-    keep_b = open_rays(sl, b, br, sp + 1, go)
+    row_a = br.row[sp]
+    row_b = br.row[sp + 1]
+    keep_a, keep_b = open_pair(sl, a, b, br, row_a, row_b, go)
     both = keep_a & keep_b
     while both != ZERO:  # as sort_halves: the far half across the seam plane and the ray's planes first
         r = lowest_bit(both)
         both &= both - ONE
         lr = br.lrays[r]
-        a_near = br.tin[sp, r] <= br.tin[sp + 1, r]
+        a_near = br.tin[row_a, r] <= br.tin[row_b, r]
         far = b if a_near else a
         near = a if a_near else b
         w0, w1, w2 = seam_plane(sl, b, pa, direction, lr)
@@ -148,9 +172,8 @@ def push_halves(sl, a, b, sp, pa, br, go, direction):
             else:
                 keep_b &= ~bit(r)
     if keep_a != ZERO and keep_b != ZERO:
-        if nearest(br.tin, sp, keep_a) <= nearest(br.tin, sp + 1, keep_b):  # a nearer: a on top
-            swap_rows(br.tin, sp, sp + 1)
-            swap_rows(br.tout, sp, sp + 1)
+        if nearest(br.tin, row_a, keep_a) <= nearest(br.tin, row_b, keep_b):  # a nearer: a on top
+            br.row[sp], br.row[sp + 1] = row_b, row_a
             a, b, keep_a, keep_b = b, a, keep_b, keep_a
         br.slot[sp], br.slot[sp + 1] = a, b
         br.mask[sp], br.mask[sp + 1] = keep_a, keep_b
@@ -158,9 +181,7 @@ def push_halves(sl, a, b, sp, pa, br, go, direction):
     if keep_a == ZERO and keep_b == ZERO:
         return sp, a, b
     if keep_b != ZERO:  # only b: to position sp
-        for k in range(br.tin.shape[1]):
-            br.tin[sp, k] = br.tin[sp + 1, k]
-            br.tout[sp, k] = br.tout[sp + 1, k]
+        br.row[sp], br.row[sp + 1] = row_b, row_a
         br.slot[sp] = b
         br.mask[sp] = keep_b
         return sp + 1, a, -1
@@ -207,13 +228,14 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
         root_at(sl, s, pa, lv)
     add_count(br.counts, active, C_EFFORT, 1)
     br.slot[0] = s
-    br.mask[0] = open_rays(sl, s, br, 0, active)
+    br.mask[0] = open_rays(sl, s, br, br.row[0], active)
     sp = 1 if br.mask[0] != ZERO else 0
     while sp > 0:
         sp -= 1
         a = br.slot[sp]
         cached = a >= first
-        live = ahead(br.tin, sp, br.hits, br.mask[sp])
+        row = br.row[sp]
+        live = ahead(br.tin, row, br.hits, br.mask[sp])
         if live == ZERO or (HAS_TRIMS and trim_state(sl, a, pa, trims) < 0):  # noqa: F821
             if not cached:
                 free[nfree] = a
@@ -224,13 +246,20 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
         d_first = 0.0
         shrank_first = False
         kept = -1  # the box's trim verdict, once a ray needs it
+        # The criterion is judged once for the box, per ray only where it reads the ray (adaptive:
+        # its threshold at the ray's t), the box's grid diameter computed at most once.
+        per_ray = q.criterion == ADAPTIVE
+        stop, d_crit, shrank, g = False, 0.0, False, -1.0
+        if not per_ray:
+            stop, d_crit, shrank, g = judge_known(sl, a, pa, lv, br.lrays[lowest_bit(live)], q, g)
         m = live
         while m != ZERO:
             r = lowest_bit(m)
             m &= m - ONE
-            sl.mf[a, M_TIN] = br.tin[sp, r]  # the steps read the ray's interval from the slot
-            sl.mf[a, M_TOUT] = br.tout[sp, r]
-            stop, d_crit, shrank = judge(sl, a, pa, lv, br.lrays[r], q)
+            sl.mf[a, M_TIN] = br.tin[row, r]  # the steps read the ray's interval from the slot
+            sl.mf[a, M_TOUT] = br.tout[row, r]
+            if per_ray:
+                stop, d_crit, shrank, g = judge_known(sl, a, pa, lv, br.lrays[r], q, g)
             if not stop:
                 if go == ZERO:
                     first_ray, d_first, shrank_first = r, d_crit, shrank
@@ -316,15 +345,15 @@ def make_bundle_search(variant):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _node_rays(node_box, node, br, top, m):
-    """Slab-test a BVH node against the rays of m (intervals into node_tin[top]); the rays that
+def _node_rays(node_box, node, br, row, m):
+    """Slab-test a BVH node against the rays of m (intervals into node_tin[row]); the rays that
     meet it before their own closest hit."""
     alive = ZERO
     while m != ZERO:
         r = lowest_bit(m)
         m &= m - ONE
-        ok, t_in, _ = slab(node_box[node], 0.0, 0.0, 0.0, br.rays[r])
-        br.node_tin[top, r] = t_in
+        ok, t_in, _ = slab(node_box[node], NO_SHIFT, NO_SHIFT, NO_SHIFT, br.rays[r])
+        br.node_tin[row, r] = t_in
         if ok and t_in < br.hits[r, H_TIN]:
             alive |= bit(r)
     return alive
@@ -337,7 +366,7 @@ def _bvh_bundle_walk(agg, lv, trims, q, sl, br, active):
     add_count(counts, active, C_BOX_TESTS, 1)
     if node_child[0, 0] < 0:
         add_count(counts, active, C_SURFACES, agg.leaf_count[0])
-    m = _node_rays(agg.node_box, 0, br, 0, active)
+    m = _node_rays(agg.node_box, 0, br, br.node_row[0], active)
     if m == ZERO:
         return
     br.node[0] = 0
@@ -346,7 +375,7 @@ def _bvh_bundle_walk(agg, lv, trims, q, sl, br, active):
     while top > 0:
         top -= 1
         node = br.node[top]
-        live = ahead(br.node_tin, top, br.hits, br.node_mask[top])
+        live = ahead(br.node_tin, br.node_row[top], br.hits, br.node_mask[top])
         if live == ZERO:
             continue
         add_count(counts, live, C_NODES, 1)
@@ -363,8 +392,10 @@ def _bvh_bundle_walk(agg, lv, trims, q, sl, br, active):
             if node_child[child, 0] < 0:
                 add_count(counts, live, C_SURFACES, agg.leaf_count[child])
         # Both children's intervals go where they will be popped from: the nearer on top.
-        ml = _node_rays(agg.node_box, left, br, top, live)
-        mr = _node_rays(agg.node_box, right, br, top + 1, live)
+        row_l = br.node_row[top]
+        row_r = br.node_row[top + 1]
+        ml = _node_rays(agg.node_box, left, br, row_l, live)
+        mr = _node_rays(agg.node_box, right, br, row_r, live)
         if ml == ZERO and mr == ZERO:
             continue
         if ml == ZERO or mr == ZERO:
@@ -372,12 +403,11 @@ def _bvh_bundle_walk(agg, lv, trims, q, sl, br, active):
             br.node[top] = only
             br.node_mask[top] = ml | mr
             if only == right:
-                for k in range(br.node_tin.shape[1]):
-                    br.node_tin[top, k] = br.node_tin[top + 1, k]
+                br.node_row[top], br.node_row[top + 1] = row_r, row_l
             top += 1
             continue
-        if nearest(br.node_tin, top, ml) <= nearest(br.node_tin, top + 1, mr):  # left nearer: right below it
-            swap_rows(br.node_tin, top, top + 1)
+        if nearest(br.node_tin, row_l, ml) <= nearest(br.node_tin, row_r, mr):  # left nearer: right below it
+            br.node_row[top], br.node_row[top + 1] = row_r, row_l
             br.node[top], br.node[top + 1] = right, left
             br.node_mask[top], br.node_mask[top + 1] = mr, ml
         else:
@@ -399,6 +429,6 @@ def bundle_rays(count: int, slots: int, stack: int) -> BundleRays:
     from .records import COUNTER_LEN
     return BundleRays(np.zeros((count, RAY_LEN)), np.zeros((count, RAY_LEN)), np.zeros((count, HIT_LEN)),
                       np.zeros((count, COUNTER_LEN), np.int64), np.zeros(count), np.zeros(slots, np.int32),
-                      np.zeros(slots, np.uint64), np.zeros((slots, count)), np.zeros((slots, count)),
-                      np.zeros(slots, np.int32), np.zeros(stack, np.int32), np.zeros(stack, np.uint64),
-                      np.zeros((stack, count)))
+                      np.zeros(slots, np.uint64), np.arange(slots, dtype=np.int32), np.zeros((slots, count)),
+                      np.zeros((slots, count)), np.zeros(slots, np.int32), np.zeros(stack, np.int32),
+                      np.zeros(stack, np.uint64), np.arange(stack, dtype=np.int32), np.zeros((stack, count)))

@@ -15,6 +15,10 @@ H_TIN, H_TOUT, H_LO, H_HI, H_U, H_V, H_PATCH, H_DEPTH, H_DU, H_DV = 0, 1, 2, 5, 
 HIT_LEN = 14
 
 _T_SLACK = 4.0 * 2.0 ** -52  # widen slab exits by a few float64 ulps: grazing rays keep their boxes
+# slab's offset for a box in the ray's own coordinates: x + -0.0 is x for every x, so the
+# additions fold away (x + 0.0 turns -0.0 into 0.0, which LLVM must keep; only the sign of a
+# zero t could differ, and a walk only compares those)
+NO_SHIFT = -0.0
 
 
 @njit(cache=True, nogil=True, inline='always')

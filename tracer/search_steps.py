@@ -156,6 +156,14 @@ def trim_state(sl, a, pa, trims):
 def judge(sl, a, pa, lv, ray, q):
     """Does slot a meet the termination criterion? Returns (stop, the criterion's diameter,
     whether the box really shrank since its parent)."""
+    stop, d_crit, shrank, _ = judge_known(sl, a, pa, lv, ray, q, -1.0)
+    return stop, d_crit, shrank
+
+
+@njit(cache=True, nogil=True, inline='always')
+def judge_known(sl, a, pa, lv, ray, q, g):
+    """judge, given slot a's grid box L1 diameter g where a ray of the bundle needed it already
+    (-1: not yet); returns it too (still -1 if this ray did not need it either)."""
     mf = sl.mf
     d = mf[a, M_D]
     depth = sl.mi[a, I_DEPTH]
@@ -167,7 +175,11 @@ def judge(sl, a, pa, lv, ray, q):
         limit = max(limit, param)
     elif criterion == ADAPTIVE:
         limit = max(limit, ray[R_T0] + ray[R_DT] * mf[a, M_TIN])
-    d_crit = grid_l1(sl, a, lv.grid, pa.p) if d <= limit else d
+    d_crit = d
+    if d <= limit:
+        if g < 0.0:
+            g = grid_l1(sl, a, lv.grid, pa.p)
+        d_crit = g
     stop = depth >= q.max_depth
     if criterion == FIXED:
         stop = stop or d_crit <= param
@@ -185,7 +197,7 @@ def judge(sl, a, pa, lv, ray, q):
     if not shrank and sl.mi[a, I_STALLED] == 1 and not (pa.rational and d > limit):
         stop = True  # (a rational box can stall far above the float limit while extreme
         # weights spread its control points: that is no loss of precision, split on)
-    return stop, d_crit, shrank
+    return stop, d_crit, shrank, g
 
 
 @njit(cache=True, nogil=True, inline='always')

@@ -1,4 +1,5 @@
-"""The bicubic de Casteljau split in 4-wide vectors (LLVM IR through a numba intrinsic).
+"""The bicubic de Casteljau split in 4-wide vectors, and the bicubic hull's extent across a plane
+in 16-wide ones (LLVM IR through numba intrinsics).
 
 Numba compiles the scalar split to scalar instructions (it leaves LLVM's SLP vectoriser off),
 and a split is a third of the search. Here the 4 x 4 control points of one coordinate are four
@@ -7,10 +8,19 @@ whole rows; halving in u transposes first, so each vector holds a column. The ar
 the scalar split's, lane by lane: (a + b) * 0.5 in the buffer's dtype, no fused or reordered
 operations, so results are bit-identical (tests/test_bezier.py checks).
 
+The hull test (subpatch.hull_off_plane) measures each of a slot's 16 control points across a
+plane through the ray: here the 16 points are one vector per coordinate, converted to float64,
+and x n0 + y n1 + z n2 is formed lane by lane as the scalar loop forms it; the least and greatest
+value are exact (min and max do not round; which of two equal zeros comes out cannot matter
+to the test, which adds them to an offset and compares), a NaN skipped as the loop's min and max
+skip it.
+
 Intrinsics cannot run in Python, so with NUMBA_DISABLE_JIT=1 the same names are bound to
 numpy versions that do the same operations in the same order (split_u_cubic_python).
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from llvmlite import ir
@@ -121,7 +131,56 @@ def _make_split(along_u: bool):
     return split
 
 
-# ---- the same split in numpy, for NUMBA_DISABLE_JIT=1 ------------------------------------
+def _reduce_lanes(builder, op, vector, lanes):
+    """op over the `lanes` lanes of one vector, halving it each time, as a scalar."""
+    while lanes > 1:
+        lanes //= 2
+        vector = op(builder, _shuffle(builder, vector, vector, list(range(lanes))),
+                    _shuffle(builder, vector, vector, list(range(lanes, 2 * lanes))))
+    return builder.extract_element(vector, ir.IntType(32)(0))
+
+
+def dist_range_cubic(typingctx, buf, s, n0, n1, n2):
+    """(least, greatest) of x n0 + y n1 + z n2 over the 16 control points of slot s, float64."""
+    if not (isinstance(buf, types.Array) and buf.ndim == 3 and buf.layout == 'C'
+            and buf.dtype in (types.float32, types.float64)):
+        return None
+    sig = types.UniTuple(types.float64, 2)(buf, s, types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        buf_ty, s_ty = signature.args[:2]
+        buf_v, s_v, *normal = args
+        s_i = context.cast(builder, s_v, s_ty, types.intp)
+        points = context.make_array(buf_ty)(context, builder, buf_v)
+        elem = context.get_value_type(buf_ty.dtype)
+        double = ir.DoubleType()
+        shape = cgutils.unpack_tuple(builder, points.shape)
+        strides = cgutils.unpack_tuple(builder, points.strides)
+        total = None
+        for c in range(3):
+            ptr = cgutils.get_item_pointer2(context, builder, points.data, shape, strides, buf_ty.layout,
+                                            [s_i, context.get_constant(types.intp, c),
+                                             context.get_constant(types.intp, 0)])
+            row = builder.load(builder.bitcast(ptr, ir.VectorType(elem, 16).as_pointer()),
+                               align=context.get_abi_sizeof(elem))
+            if elem != double:
+                row = builder.fpext(row, ir.VectorType(double, 16))
+            lane = builder.insert_element(ir.Constant(ir.VectorType(double, 16), ir.Undefined), normal[c],
+                                          ir.IntType(32)(0))
+            term = builder.fmul(row, _shuffle(builder, lane, lane, [0] * 16))
+            total = term if total is None else builder.fadd(total, term)
+        # The scalar loop's min(lo, dist) keeps lo where dist is NaN: NaN lanes count as +-inf.
+        nan = builder.fcmp_unordered('uno', total, total)
+        lanes = ir.VectorType(double, 16)
+        low = builder.select(nan, ir.Constant(lanes, [ir.Constant(double, math.inf)] * 16), total)
+        high = builder.select(nan, ir.Constant(lanes, [ir.Constant(double, -math.inf)] * 16), total)
+        return context.make_tuple(builder, signature.return_type,
+                                  [_reduce_lanes(builder, _min, low, 16), _reduce_lanes(builder, _max, high, 16)])
+
+    return sig, codegen
+
+
+# ---- the same operations in numpy, for NUMBA_DISABLE_JIT=1 --------------------------------
 # Each 4-lane vector is a length-4 array in the buffer's dtype; the scalar one half has that
 # dtype too, so every lane rounds as the vector instruction does.
 
@@ -175,11 +234,21 @@ def _make_split_python(along_u: bool):
 split_u_cubic_python = _make_split_python(True)
 split_v_cubic_python = _make_split_python(False)
 
+
+def dist_range_cubic_python(buf, s, n0, n1, n2):
+    rows = buf[s, :3, :16].astype(np.float64)
+    dist = rows[0] * n0 + rows[1] * n1 + rows[2] * n2
+    nan = np.isnan(dist)
+    return float(np.where(nan, np.inf, dist).min()), float(np.where(nan, -np.inf, dist).max())
+
+
 if config.DISABLE_JIT:
     split_u_cubic, split_v_cubic = split_u_cubic_python, split_v_cubic_python
+    dist_range_cubic = dist_range_cubic_python
 else:
     split_u_cubic = intrinsic(_make_split(True))
     split_v_cubic = intrinsic(_make_split(False))
+    dist_range_cubic = intrinsic(dist_range_cubic)
 split_u_cubic.__doc__ = """Halve a bicubic in slot src at u = 1/2 (src keeps [0, 1/2], dst gets [1/2, 1]),
 writing both halves' control boxes into box[src], box[dst]."""
 split_v_cubic.__doc__ = """Halve a bicubic in slot src at v = 1/2, with both halves' boxes (see split_u_cubic)."""

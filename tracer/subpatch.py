@@ -23,6 +23,7 @@ from .bezier import (control_box, control_box_rational, restrict, restrict_err, 
                      split_u_linear, split_v, split_v_cubic, split_v_linear)
 from .ray import R_D, R_N1, R_N2, R_O, slab
 from .records import PatchInfo
+from .simd import dist_range_cubic
 
 # Split heuristics (codes as in options.SPLIT_CODE).
 SPLIT_LENGTH, SPLIT_CROSS = 0, 1
@@ -48,10 +49,11 @@ SUB_ERR_BITS = 8    # float64: a split's rounding stays below 2^-(bits - 8) of t
 # Calls or inlines. numba inlines an inline='always' helper into its own IR once per call site,
 # and its type inference, SSA and lowering then cost more than linearly in the kernel's size; a
 # plain call is typed and lowered once, and LLVM still inlines it where that pays. So leaf
-# operations used at several call sites are calls (_CALLED: point, raw_box, widen, snap_*,
+# operations used at several call sites are calls (_CALLED: point, hull_range, raw_box, widen, snap_*,
 # ulp), and so are the rare re-centring and re-deriving (_COLD); operations given a variant flag as an argument stay inlined, so that the
 # flag stays a constant their branches are pruned by (split, tighten, open_child). The hull and
-# slab tests stay inlined too: LLVM leaves them as calls, which cost the search 8 %.
+# slab tests stay inlined too (LLVM leaves them as calls, which cost the search 8 %), but for the
+# hull's loop over the points (hull_range: inlined at every hull test it lengthened cold compiles).
 
 
 def max_depth_for(precision_bits: int) -> int:
@@ -125,11 +127,20 @@ def widen(sl, s, sub_scale):
 
 @njit(cache=True, nogil=True, inline='always')
 def grid_l1(sl, s, grid, p):
-    """L1 diameter of slot s's box rounded outward onto the leaf's grid (exact)."""
+    """L1 diameter of slot s's box rounded outward onto the leaf's grid (exact): snap_up minus
+    snap_down per axis, with one division instead of two (the step g is a power of two, so 1 / g
+    is exact and q * (1 / g) is q / g to the bit)."""
     total = 0.0
     for c in range(3):
         o = sl.mf[s, M_OX + c]
-        total += snap_up(sl.box[s, 3 + c] + o, grid[p, c]) - snap_down(sl.box[s, c] + o, grid[p, c])
+        lo = sl.box[s, c] + o
+        hi = sl.box[s, 3 + c] + o
+        g = grid[p, c]
+        if g > 0.0:
+            inv = 1.0 / g
+            total += math.ceil(hi * inv) * g - math.floor(lo * inv) * g
+        else:
+            total += hi - lo
     return total
 
 
@@ -241,6 +252,22 @@ def point(buf, s, k, rational):
     return np.float64(buf[s, 0, k]), np.float64(buf[s, 1, k]), np.float64(buf[s, 2, k])
 
 
+@njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
+def hull_range(buf, s, count, rational, cubic, n0, n1, n2):
+    """The least and greatest x n0 + y n1 + z n2 over slot s's control points (cubic: an integral
+    bicubic slot, its 16 points in vectors: simd, the same values)."""
+    if cubic:
+        return dist_range_cubic(buf, s, n0, n1, n2)
+    lo = math.inf
+    hi = -math.inf
+    for k in range(count):
+        x, y, z = point(buf, s, k, rational)
+        dist = x * n0 + y * n1 + z * n2
+        lo = min(lo, dist)
+        hi = max(hi, dist)
+    return lo, hi
+
+
 @njit(cache=True, nogil=True, inline='always')
 def hull_off_plane(sl, s, pa, ray, n0, n1, n2):
     """Is the convex hull of slot s's control points (widened by the error bounds) wholly on one
@@ -252,13 +279,7 @@ def hull_off_plane(sl, s, pa, ray, n0, n1, n2):
     rel1 = mf[s, M_OX + 1] - ray[R_O + 1]
     rel2 = mf[s, M_OX + 2] - ray[R_O + 2]
     offset = rel0 * n0 + rel1 * n1 + rel2 * n2
-    lo = math.inf
-    hi = -math.inf
-    for k in range(pa.count):
-        x, y, z = point(buf, s, k, pa.rational)
-        dist = x * n0 + y * n1 + z * n2
-        lo = min(lo, dist)
-        hi = max(hi, dist)
+    lo, hi = hull_range(buf, s, pa.count, pa.rational, pa.cubic, n0, n1, n2)
     slack = ((mf[s, M_E] + sub) * abs(n0) + (mf[s, M_E + 1] + sub) * abs(n1) + (mf[s, M_E + 2] + sub) * abs(n2)
              + 2.0 ** -51 * (abs(rel0) + abs(rel1) + abs(rel2) + max(abs(lo), abs(hi))))
     return offset + lo > slack or offset + hi < -slack
