@@ -68,8 +68,8 @@ def make_batch_kernel(variant):
 # the m points (S = count), the point being tested (state[0]) and the walk (state[1]: 0 boxes
 # alone, 1 with the samples' searches; state[2] the grown boxes holding the origin met so far;
 # state[3] 1 where one cone search may stand for the samples' searches: cone_search.py; state[4]
-# the boxes the point's cone searches have computed; state[5], state[6]: MAX_NEAR, CONE_BOXES;
-# state[7], state[8]: the point's own limits, smaller under wide cones),
+# the boxes the point's cone searches have computed; state[5], state[6]: the point's limits on
+# leaves and boxes, MAX_NEAR and CONE_BOXES made smaller under wide cones),
 # the sample's ray and hit records, and the light's half extents (3,).
 PenumbraContext = namedtuple("PenumbraContext", "leaves trims grown samples count state ray hit counts half")
 
@@ -91,11 +91,11 @@ def _penumbra_visit(p, ctx, trims, ray, hit, q, sl, trace):
     does (the point's own surface, its neighbours) is passed by in the first walk (state[1] = 0)
     and settled in the second by the samples' own searches of that leaf."""
     ctx.state[2] += 1
-    if ctx.state[2] > ctx.state[7]:  # too many boxes on the way to the light: sample the point
+    if ctx.state[2] > ctx.state[5]:  # too many boxes on the way to the light: sample the point
         hit[H_TIN] = ray[R_TMIN]
         return 1
     if CONE and ctx.state[3] == 1:  # noqa: F821
-        maybe, spent = cone(p, ctx.leaves, ctx.trims, ray, ctx.half, q, sl, ctx.state[8] - ctx.state[4])  # noqa: F821
+        maybe, spent = cone(p, ctx.leaves, ctx.trims, ray, ctx.half, q, sl, ctx.state[6] - ctx.state[4])  # noqa: F821
         ctx.state[4] += spent
         if maybe:
             hit[H_TIN] = ray[R_TMIN]
@@ -138,8 +138,8 @@ def _trace_penumbra(rays, ctx, agg, q, lit, effort, trace, scratch):
             size = max(size, ctx.half[c])
         wide = size / max(math.sqrt(r[3] * r[3] + r[4] * r[4] + r[5] * r[5]), 1e-300)
         scale = min(1.0, (WIDE / wide) ** 3) if wide > 0.0 else 1.0
-        ctx.state[7] = max(MIN_NEAR, int(ctx.state[5] * scale))
-        ctx.state[8] = ctx.state[7] * ctx.state[6] // ctx.state[5]
+        ctx.state[5] = max(MIN_NEAR, int(MAX_NEAR * scale))
+        ctx.state[6] = ctx.state[5] * CONE_BOXES // MAX_NEAR
         for second in range(1 if ctx.state[3] == 1 else 2):
             make_ray(rs.ray, r[0], r[1], r[2], r[3], r[4], r[5], r[RB_TMIN], r[RB_T0], r[RB_DT])
             rs.hit[H_TIN] = r[RB_TMAX]
@@ -224,7 +224,7 @@ class BatchTracer:
         if m:
             inp = self.inputs
             ctx = PenumbraContext(inp.scene[0], inp.scene[1], grown, samples, count,
-                                  np.array([0, 0, 0, int(cone), 0, MAX_NEAR, CONE_BOXES, 0, 0], np.int64), np.zeros(len(self.scratch().ray.ray)),
+                                  np.array([0, 0, 0, int(cone), 0, 0, 0], np.int64), np.zeros(len(self.scratch().ray.ray)),
                                   np.zeros(len(self.scratch().ray.hit)), np.zeros(COUNTER_LEN, np.int64),
                                   np.ascontiguousarray(half, np.float64))
             scratch = self.scratch()._replace(stack=WalkStack(np.zeros(stack, np.int32), np.zeros(stack)))

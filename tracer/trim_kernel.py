@@ -24,11 +24,9 @@ MAX_SPLIT_DEPTH = 96  # as tracer.trim: float64 boxes stop shrinking long before
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _halve(stack_h, stack_m, top, n, diam):
-    """Halve the piece at `top` at t = 1/2: the left half stays in `top`, the right one goes to
-    `top + 1`; both remember `diam` as their parent's diameter and one more level of depth."""
-    bu = stack_m[top, 2]
-    bv = stack_m[top, 3]
+def halve_piece(stack_h, top, n):
+    """de Casteljau at t = 1/2 of the curve stack_h[top, :n] (homogeneous points, 3 coordinates):
+    its left half stays in `top`, the right one goes to `top + 1`."""
     right = top + 1
     for c in range(3):
         stack_h[right, n - 1, c] = stack_h[top, n - 1, c]
@@ -38,6 +36,16 @@ def _halve(stack_h, stack_m, top, n, diam):
                 stack_h[top, i, c] = 0.5 * stack_h[top, i - 1, c] + 0.5 * stack_h[top, i, c]
         for c in range(3):
             stack_h[right, n - 1 - k, c] = stack_h[top, n - 1, c]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _halve(stack_h, stack_m, top, n, diam):
+    """Halve the piece at `top` at t = 1/2 (halve_piece); both halves remember `diam` as their
+    parent's diameter and one more level of depth."""
+    bu = stack_m[top, 2]
+    bv = stack_m[top, 3]
+    right = top + 1
+    halve_piece(stack_h, top, n)
     mu = stack_h[top, n - 1, 0] / stack_h[top, n - 1, 2]
     mv = stack_h[top, n - 1, 1] / stack_h[top, n - 1, 2]
     depth = stack_m[top, 5] + 1.0

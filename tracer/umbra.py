@@ -36,6 +36,7 @@ import math
 import numpy as np
 
 from .jit import njit
+from .trim_kernel import halve_piece
 
 MAX_CANDIDATES = 8  # scene patches tried per point
 MAX_LEVEL = 12      # halvings of a boundary curve before the point is left to its samples
@@ -89,24 +90,7 @@ def _project(piece, n, px, py):
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def _halve(piece, right, work, n):
-    """de Casteljau at 1/2: piece (n homogeneous points) becomes its left half, right its right half."""
-    for i in range(n):
-        for c in range(3):
-            work[i, c] = piece[i, c]
-    for c in range(3):
-        right[n - 1, c] = work[n - 1, c]
-    for r in range(1, n):
-        for i in range(n - r):
-            for c in range(3):
-                work[i, c] = 0.5 * (work[i, c] + work[i + 1, c])
-        for c in range(3):
-            piece[r, c] = work[0, c]
-            right[n - 1 - r, c] = work[n - 1 - r, c]
-
-
-@njit(cache=True, nogil=True, _nrt=False)
-def _turn(curve, n, kx, ky, nk, grow, cx, cy, stack, level, work, px, py):
+def _turn(curve, n, kx, ky, nk, grow, cx, cy, stack, level, px, py):
     """(proven, angle): the angle the curve (n homogeneous points X, Y, W) turns about (cx, cy),
     summed over pieces separated from K; not proven where a piece still meets K after MAX_LEVEL
     halvings or a point of the curve lies in K."""
@@ -127,7 +111,7 @@ def _turn(curve, n, kx, ky, nk, grow, cx, cy, stack, level, work, px, py):
             continue
         if level[top] == MAX_LEVEL:
             return False, 0.0
-        _halve(piece, stack[top + 1], work, n)
+        halve_piece(stack, top, n)
         px[0] = stack[top + 1, 0, 0] / stack[top + 1, 0, 2]
         py[0] = stack[top + 1, 0, 1] / stack[top + 1, 0, 2]
         if not _separated(px, py, 1, kx, ky, nk, grow):
@@ -190,7 +174,7 @@ def _covers(g, du, dv, o, frame, near, far, kx, ky, nk, grow, cx, cy, reach, s):
     from o and covers K (kx, ky)[:nk] grown by `grow` seen from o: every segment from o to a point
     of K's cone crosses it. frame: rows e1, e2, axis; reach: the coordinates' magnitude (rounding
     margins); s: scratch (_scratch)."""
-    grid, curve, stack, level, work, px, py = s[0], s[1], s[2], s[3], s[4], s[5], s[6]
+    grid, curve, stack, level, px, py = s[0], s[1], s[2], s[3], s[4], s[5]
     closest = math.inf
     for k in range((du + 1) * (dv + 1)):
         w = g[k, 3]
@@ -219,7 +203,7 @@ def _covers(g, du, dv, o, frame, near, far, kx, ky, nk, grow, cx, cy, reach, s):
                 k = (dv - i) * (du + 1)
             for c in range(3):
                 curve[i, c] = grid[k, c]
-        proven, angle = _turn(curve, n, kx, ky, nk, grow, cx, cy, stack, level, work, px, py)
+        proven, angle = _turn(curve, n, kx, ky, nk, grow, cx, cy, stack, level, px, py)
         if not proven:
             return False
         total += angle
@@ -229,13 +213,14 @@ def _covers(g, du, dv, o, frame, near, far, kx, ky, nk, grow, cx, cy, reach, s):
 
 @njit(cache=True, nogil=True, _nrt=False)
 def _light_view(o, centre, kind, radius, corners, frame, kx, ky, reach):
-    """Seen from o: (usable, nk, grow, far, cx, cy): K's points (kx, ky)[:nk] grown by `grow` (a
+    """Seen from o: (usable, nk, grow, far, cx, cy, d): K's points (kx, ky)[:nk] grown by `grow` (a
     disc: its centre and radius; a segment or rectangle: its corners), the light's nearest depth
-    (less a margin) and K's centre; frame gets e1, e2 and the axis o -> centre."""
+    (less a margin), K's centre and the distance to the light's centre; frame gets e1, e2 and the
+    axis o -> centre."""
     ax, ay, az = centre[0] - o[0], centre[1] - o[1], centre[2] - o[2]
     d = math.sqrt(ax * ax + ay * ay + az * az)
     if not d > 0.0:
-        return False, 0, 0.0, 0.0, 0.0, 0.0
+        return False, 0, 0.0, 0.0, 0.0, 0.0, 0.0
     ax, ay, az = ax / d, ay / d, az / d
     hx, hy, hz = (1.0, 0.0, 0.0) if abs(ax) < 0.6 else (0.0, 1.0, 0.0)
     ux, uy, uz = ay * hz - az * hy, az * hx - ax * hz, ax * hy - ay * hx
@@ -248,9 +233,9 @@ def _light_view(o, centre, kind, radius, corners, frame, kx, ky, reach):
     if kind == SPHERE:
         r = radius * (1.0 + GROW) + slack
         if not d > r * (1.0 + GROW):
-            return False, 0, 0.0, 0.0, 0.0, 0.0
+            return False, 0, 0.0, 0.0, 0.0, 0.0, 0.0
         kx[0], ky[0] = 0.0, 0.0
-        return True, 1, r / math.sqrt(d * d - r * r), d - r, 0.0, 0.0
+        return True, 1, r / math.sqrt(d * d - r * r), d - r, 0.0, 0.0, d
     nk = 2 if kind == SEGMENT else 4
     far = math.inf
     cx = cy = extent = 0.0
@@ -258,7 +243,7 @@ def _light_view(o, centre, kind, radius, corners, frame, kx, ky, reach):
         rx, ry, rz = corners[j, 0] - o[0], corners[j, 1] - o[1], corners[j, 2] - o[2]
         z = rx * ax + ry * ay + rz * az
         if not z > slack:
-            return False, 0, 0.0, 0.0, 0.0, 0.0
+            return False, 0, 0.0, 0.0, 0.0, 0.0, 0.0
         far = min(far, z - slack)
         kx[j] = (rx * frame[0, 0] + ry * frame[0, 1] + rz * frame[0, 2]) / z
         ky[j] = (rx * frame[1, 0] + ry * frame[1, 1] + rz * frame[1, 2]) / z
@@ -266,14 +251,14 @@ def _light_view(o, centre, kind, radius, corners, frame, kx, ky, reach):
         cy += ky[j] / nk
     for j in range(nk):
         extent = max(extent, abs(kx[j] - cx) + abs(ky[j] - cy))
-    return True, nk, GROW * (1.0 + extent) + slack / far, far, cx, cy
+    return True, nk, GROW * (1.0 + extent) + slack / far, far, cx, cy, d
 
 
 @njit(cache=True, nogil=True, _nrt=False)
 def _candidate(points, first, du, dv, param, o, frame, near, far, kx, ky, nk, grow, cx, cy, reach, s, whole):
     """Whether the patch (if whole) or one of the parameter squares of half width 1/4, 1/8, 1/16
     about the leaf's centre (param: its u0 u1 v0 v1) covers the light seen from o."""
-    g = s[8]
+    g = s[7]
     for half in (0.0, 0.25, 0.125, 0.0625):
         if half == 0.0 and not whole:
             continue
@@ -281,7 +266,7 @@ def _candidate(points, first, du, dv, param, o, frame, near, far, kx, ky, nk, gr
         if half > 0.0:
             uc, vc = 0.5 * (param[0] + param[1]), 0.5 * (param[2] + param[3])
             _restrict(g, du, dv, max(0.0, uc - half), min(1.0, uc + half), max(0.0, vc - half),
-                      min(1.0, vc + half), s[7])
+                      min(1.0, vc + half), s[6])
         if _covers(g, du, dv, o, frame, near, far, kx, ky, nk, grow, cx, cy, reach, s):
             return True
     return False
@@ -306,12 +291,9 @@ def proven_umbra(origins, ask, centre, kind, radius, corners, node_box, node_chi
             reach = max(reach, abs(o[c]), abs(centre[c]) + radius)
             for j in range(corners.shape[0]):
                 reach = max(reach, abs(corners[j, c]))
-        usable, nk, grow, far, cx, cy = _light_view(o, centre, kind, radius, corners, frame, kx, ky, reach)
+        usable, nk, grow, far, cx, cy, d = _light_view(o, centre, kind, radius, corners, frame, kx, ky, reach)
         if not usable:
             continue
-        d = 0.0
-        for c in range(3):
-            d += (centre[c] - o[c]) * frame[2, c]
         near = GROW * d + ROUNDING * reach
         far = far - GROW * d - ROUNDING * reach
         n_patches = n_leaves = 0
@@ -360,11 +342,10 @@ def proven_umbra(origins, ask, centre, kind, radius, corners, node_box, node_chi
 
 def _scratch(max_points: int, max_degree: int):
     """proven_umbra's scratch s: the projected patch, a boundary curve, the halving stack and its
-    levels, de Casteljau's work rows (3 and 4 coordinates), projected points, the patch."""
+    levels, projected points (x, y), de Casteljau's work row, the patch."""
     n = max_degree + 1
     return (np.zeros((max_points, 3)), np.zeros((n, 3)), np.zeros((MAX_LEVEL + 2, n, 3)),
-            np.zeros(MAX_LEVEL + 2, np.int64), np.zeros((n, 3)), np.zeros(n), np.zeros(n), np.zeros((n, 4)),
-            np.zeros((max_points, 4)))
+            np.zeros(MAX_LEVEL + 2, np.int64), np.zeros(n), np.zeros(n), np.zeros((n, 4)), np.zeros((max_points, 4)))
 
 
 def light_shape(light):
