@@ -10,7 +10,8 @@ primary one. Misses see the background's grey.
 Direct light at a vertex: ambient plus Lambert + Phong per light sample (light_samples.py),
 each sample weighted by its visibility: 0 where the sample lies behind the surface (decided
 without a ray where options.trivial_tests, Lischinski 6) or the shadow ray from the robust
-origin (origins.py) to it is occluded (ray_batch's any-hit kernel). Area lights first ask the
+origin (origins.py) to it is occluded (a point's rays as one bundle: shadow_bundles.py, where
+that changes no answer; else ray_batch's any-hit kernel). Area lights first ask the
 fast penumbra test (penumbra.py) and skip the samples of points it proves lit. Neither test
 changes a bit of the image: they skip only rays whose answer is already known. A scene without
 lights has a headlight at the eye, which casts no shadows (they would hide behind their casters).
@@ -41,6 +42,7 @@ from .penumbra import LIT, PENUMBRA, UMBRA, UNCLASSIFIED, expanded_set, inside, 
 from .ray_batch import BatchTracer, batch_rays
 from .scene import Light
 from .shade import AMBIENT, unit
+from .shadow_bundles import PointBundles, shares_tree
 from .umbra import UmbraTest
 from .vertices import Vertices, environment, facing, schlick
 
@@ -53,6 +55,7 @@ class Lighting:
     def __init__(self, scene, geom, opts, inputs, eye, on_compile=None):
         self.opts, self.scene, self.geom = opts, scene, geom
         self.tracer = BatchTracer(geom, opts, inputs, on_compile)
+        self.bundles = PointBundles(self.tracer) if shares_tree(opts) else None
         self.slope = float(inputs.sizes[0])  # threshold of detail per unit distance (adaptive)
         mats = scene.materials
         self.kd = np.array([m.color for m in mats], np.float64).reshape(-1, 3)
@@ -221,7 +224,10 @@ class Lighting:
         o = origin[rows]
         dt = v.grow[rows] * np.linalg.norm(lp[rows, cols] - o, axis=1)
         rays = batch_rays(o, lp[rows, cols] - o, 0.0, 1.0, v.threshold[rows], dt)
-        occluded[rows, cols], effort = self.tracer.occluded(rays)
+        if self.bundles is not None:  # a point's rays as one bundle (shadow_bundles.py)
+            occluded[rows, cols], effort = self.bundles.occluded(rays, rows)
+        else:
+            occluded[rows, cols], effort = self.tracer.occluded(rays)
         self._clock("shadow_rays", start)
         if self.recorder is not None:
             self.recorder("shadow", pix=v.pix[rows], code=v.code[rows], light=li, origin=o, target=lp[rows, cols],

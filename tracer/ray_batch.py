@@ -180,8 +180,12 @@ class BatchTracer:
         self.inputs = inputs
         self.trace = no_trace()
         self._local = threading.local()
-        self._geom, self._opts, self._on_compile = geom, opts, on_compile
+        self._geom, self._opts, self.on_compile = geom, opts, on_compile
         self._kernels = {}
+
+    def variant(self, driver: str):
+        """The batch kernels' variant for `driver` (batch_variant)."""
+        return batch_variant(self._geom, self._opts, driver)
 
     def scratch(self):
         s = getattr(self._local, "scratch", None)
@@ -193,8 +197,7 @@ class BatchTracer:
         if driver not in self._kernels:
             inp = self.inputs
             args = (rays, inp.scene, inp.query, inp.leaf_patch, out, self.trace, self.scratch())
-            self._kernels[driver] = compiled("batch", batch_variant(self._geom, self._opts, driver), args,
-                                             self._on_compile)
+            self._kernels[driver] = compiled("batch", self.variant(driver), args, self.on_compile)
         return self._kernels[driver]
 
     def occluded(self, rays: np.ndarray):
@@ -229,7 +232,7 @@ class BatchTracer:
                                   np.ascontiguousarray(half, np.float64))
             scratch = self.scratch()._replace(stack=WalkStack(np.zeros(stack, np.int32), np.zeros(stack)))
             args = (centre_rays, ctx, record, inp.query, lit, effort, self.trace, scratch)
-            compiled("penumbra", batch_variant(self._geom, self._opts, "any"), args, self._on_compile)(*args)
+            compiled("penumbra", self.variant("any"), args, self.on_compile)(*args)
         return lit, effort
 
 

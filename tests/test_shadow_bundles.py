@@ -1,0 +1,62 @@
+"""A point's shadow rays as one bundle (shadow_bundles.py) answer as the rays one by one do."""
+import numpy as np
+import pytest
+
+from tracer.bundle import MAX_RAYS
+from tracer.geometry import prepare
+from tracer.options import Options
+from tracer.ray_batch import BatchTracer, batch_rays
+from tracer.render import kernel_inputs, render
+from tracer.scene import load_scene
+from tracer.shadow_bundles import PointBundles, bundle_starts, shares_tree
+
+import scenes as S
+
+
+def test_bundle_starts_cut_per_point_and_every_max_rays():
+    point = np.array([0] * 3 + [2] * (MAX_RAYS + 5) + [7])
+    starts = bundle_starts(point)
+    assert starts.tolist() == [0, 3, 3 + MAX_RAYS, 3 + MAX_RAYS + 5, len(point)]
+    assert bundle_starts(np.zeros(0, np.int64)).tolist() == [0]
+
+
+def test_only_settings_whose_tree_is_the_rays_own():
+    assert shares_tree(Options(criterion="float"))
+    assert shares_tree(Options(criterion="mantissa"))
+    assert not shares_tree(Options(criterion="adaptive"))
+    assert not shares_tree(Options(split="cross"))
+
+
+def _shadow_rays(scene, geom, opts, rng):
+    """Rays from a frame's hit points, lifted off the surface, to points scattered about the
+    light, 1 to 150 a point (bundles of one, partly and wholly filled, and cut at MAX_RAYS);
+    returns (rays, point of each ray)."""
+    frame = render(scene, opts.with_(shadows=False, reflections=False), size=(20, 20), geometry=geom)
+    hit = frame.hit
+    pos = frame.position[hit].astype(np.float64)
+    normal = frame.normal[hit].astype(np.float64)
+    side = np.where(np.sum(normal * frame.ray_dir[hit], axis=1, keepdims=True) > 0, -1.0, 1.0)
+    origin = pos + 1e-4 * side * normal
+    counts = rng.integers(1, 151, len(origin))
+    point = np.repeat(np.arange(len(origin)), counts)
+    centre = np.asarray(scene.lights[0].centre())
+    ends = centre + rng.normal(0.0, 1.5, (len(point), 3))
+    return batch_rays(origin[point], ends - origin[point], 0.0, 1.0), point
+
+
+@pytest.mark.parametrize("name", ["teapot", "tea_set"])
+@pytest.mark.parametrize("criterion,precision", [("float", "f32"), ("float", "f64"), ("fixed", "f32"),
+                                                 ("mantissa", "f32")])
+def test_bundled_shadow_rays_answer_as_single_rays(name, criterion, precision):
+    scene = load_scene(S.SAMPLES / f"{name}.json")
+    opts = Options(criterion=criterion, precision=precision)
+    geom = prepare(scene, precision)
+    rays, point = _shadow_rays(scene, geom, opts, np.random.default_rng(7))
+    tracer = BatchTracer(geom, opts, kernel_inputs(geom, opts, 0.0))
+    alone, effort_alone = tracer.occluded(rays)
+    bundled, effort = PointBundles(tracer).occluded(rays, point)
+    assert 0.05 < alone.mean() < 0.95  # both answers occur
+    np.testing.assert_array_equal(bundled, alone)
+    # a ray that finds nothing computes the same boxes in the bundle (an occluded one looks on for
+    # nearer hit boxes: the bundle's search is the closest hit's)
+    np.testing.assert_array_equal(effort[~alone], effort_alone[~alone])

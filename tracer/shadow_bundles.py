@@ -1,0 +1,102 @@
+"""A shading point's shadow rays as one bundle (bundle.py): they share its subdivisions.
+
+The shadow rays of one point leave the same origin for points of one light: near the origin
+they descend the same sub-patches of the point's own surface down to the rounding's scale (the
+boxes there hold the origin until they are a few ulps wide), and further on they cross the same
+boxes of an occluder until the light's extent sets them apart. A bundle halves each of those
+sub-patches once for all its rays, where each ray alone would halve it again.
+
+A ray in a bundle reports what it would report alone where the tree of sub-patches does not
+depend on the ray (the `length` split under the float, fixed and mantissa criteria: bundle.py):
+its occlusion is whether its search finds a hit box before t_max, which the bundle's closest-hit
+search answers as the single ray's any-hit search does (each finds one exactly when a box of the
+same tree is accepted before t_max). Elsewhere the rays go one by one (ray_batch's any kernel).
+"""
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+
+from .bundle import MAX_RAYS, ONE, ZERO, bundle_rays, make_bundle_search, make_bvh_bundle_walk
+from .jit import njit, specialise
+from .ray import H_TIN, make_ray
+from .ray_batch import RB_DT, RB_T0, RB_TMAX, RB_TMIN
+from .records import C_EFFORT, COUNTER_LEN
+from .tile_kernel import working_slots
+from .variants import compiled
+
+
+def _trace_point_bundles(rays, starts, scene, q, occluded, effort, sl, br):
+    """The kernel template (see make_point_bundle_kernel)."""
+    lv, trims, agg = scene
+    for g in range(starts.shape[0] - 1):
+        first = starts[g]
+        active = ZERO
+        for j in range(starts[g + 1] - first):
+            r = rays[first + j]
+            make_ray(br.rays[j], r[0], r[1], r[2], r[3], r[4], r[5], r[RB_TMIN], r[RB_T0], r[RB_DT])
+            br.hits[j, H_TIN] = r[RB_TMAX]
+            for k in range(COUNTER_LEN):
+                br.counts[j, k] = 0
+            active |= ONE << np.uint64(j)
+        walk(agg, lv, trims, q, sl, br, active)  # noqa: F821
+        for j in range(starts[g + 1] - first):
+            occluded[first + j] = br.hits[j, H_TIN] < rays[first + j, RB_TMAX]
+            effort[first + j] = br.counts[j, C_EFFORT]
+
+
+def make_point_bundle_kernel(variant):
+    """trace(rays, starts, scene, q, occluded, effort, sl, br): batch rays (N, ray_batch.RB_LEN),
+    grouped into bundles of at most MAX_RAYS at the offsets `starts`, through the BVH; occluded (N,)
+    bool and effort (N,) int32 out; sl the thread's slots, br its BundleRays (point_bundle_rays)."""
+    walk = make_bvh_bundle_walk(make_bundle_search(variant))
+    return njit(cache=True, nogil=True, _nrt=False)(specialise(_trace_point_bundles, walk=walk))
+
+
+def shares_tree(opts) -> bool:
+    """Does every ray descend the same tree of sub-patches (so a bundle changes no answer)?"""
+    return opts.criterion != "adaptive" and opts.split == "length"
+
+
+class PointBundles:
+    """Shadow rays traced a point's rays at a time, beside a ray_batch.BatchTracer (its inputs,
+    its threads' slots)."""
+
+    def __init__(self, tracer):
+        self.tracer = tracer
+        self._local = threading.local()
+        self._variant = tracer.variant("closest")._replace(bundle=True)
+
+    def _bundle(self):
+        br = getattr(self._local, "bundle", None)
+        if br is None:
+            inp = self.tracer.inputs
+            br = self._local.bundle = bundle_rays(MAX_RAYS, working_slots(inp), inp.sizes[2])
+        return br
+
+    def occluded(self, rays: np.ndarray, point: np.ndarray):
+        """(occluded (N,) bool, boxes computed (N,) int32) of rays (N, RB_LEN) sorted by their
+        point (N,), as BatchTracer.occluded answers them."""
+        n = len(rays)
+        occluded, effort = np.zeros(n, bool), np.zeros(n, np.int32)
+        if n:
+            inp = self.tracer.inputs
+            args = (rays, bundle_starts(point), inp.scene, inp.query, occluded, effort, self.tracer.scratch().slots,
+                    self._bundle())
+            compiled("point_bundles", self._variant, args, self.tracer.on_compile)(*args)
+        return occluded, effort
+
+
+def bundle_starts(point: np.ndarray) -> np.ndarray:
+    """Offsets of the bundles of rays sorted by their point (N,): one per point, cut every MAX_RAYS."""
+    n = len(point)
+    if n == 0:
+        return np.zeros(1, np.int64)
+    new = np.ones(n, bool)
+    new[1:] = point[1:] != point[:-1]
+    group = np.cumsum(new) - 1
+    first = np.nonzero(new)[0]
+    rank = np.arange(n) - first[group]  # a ray's place among its point's rays
+    cut = new | (rank % MAX_RAYS == 0)
+    return np.append(np.nonzero(cut)[0], n).astype(np.int64)
