@@ -41,6 +41,7 @@ def test_the_command_prints_three_tables_with_every_row(teapot_run):
                   "peano, cache unbounded"):
         assert label in text and any(r["label"].startswith(label) or r["label"].endswith(label) for r in rows)
     assert "CPU time of the process" in text and "targets (issue 12)" in text
+    assert "re-made" in text and "(trees re-made 0 / 0)" in text  # 8x6: every bound holds the frame's trees
 
 
 def test_rows_measure_against_their_plain_row_in_the_same_runs(teapot_run):
@@ -68,6 +69,7 @@ def test_the_counters_and_the_cache_figures_are_sane(teapot_run):
         if "unbounded" in r["label"]:  # room for every tree: each made once, none released
             c = r["stats"]["coherence"]
             assert c["cache"]["released"] == 0 and c["cache_misses_per_surface"] == 1.0
+            assert c["cache"]["misses"] == c["cache"]["surfaces"]  # the table's re-made: 0
     accel = [r for r in rows if r["table"] == "accel"]
     assert all((r["build_seconds"] is None) == ("mailbox" in r["label"]) for r in accel)
     assert {r["stats"]["accel"]["kind"] for r in accel} == {"bvh", "kdtree", "grid"}

@@ -233,3 +233,40 @@ def test_scattered_pixels_shade_as_the_whole_image(teapot, scanline_frame):
     for mode in MODES:
         whole = shade(frame, teapot, mode, rect=(0, 32, 0, 40))
         assert np.array_equal(shade(frame, teapot, mode, pixels=pixels), whole[pixels[:, 0], pixels[:, 1]]), mode
+
+
+def test_peano_meets_its_first_quadrant_again_only_at_the_end():
+    """The seam that costs the Peano order re-made trees under some cache bounds (README,
+    "Coherence"): the first and the last top-level quadrants of the curve (top left, top right)
+    share an edge, and the pixels on either side of it are traced at the start and at the end of
+    the frame; a scanline tile's neighbour below comes one row of tiles later."""
+    n = 64
+    place = np.empty((n, n), int)
+    pixels = np.concatenate([u[0] for u in units_of("peano", (n, n), 16, (1, 1))])
+    place[pixels[:, 0], pixels[:, 1]] = np.arange(n * n)
+    left, right = place[:n // 2, n // 2 - 1], place[:n // 2, n // 2]
+    assert left.max() < n * n // 4 and right.min() >= 3 * n * n // 4
+    scan = np.concatenate([u[0] for u in units_of("scanline", (n, n), 16, (1, 1))])
+    place[scan[:, 0], scan[:, 1]] = np.arange(n * n)
+    assert np.all(np.abs(place[1:] - place[:-1]) <= 16 * n)  # vertical neighbours a row of tiles apart at most
+
+
+@pytest.mark.parametrize("order", ORDERS)
+def test_orders_make_the_same_searches_with_a_bounded_cache(teapot, scanline_frame, order):
+    """With a cache too small for the frame (trees released and re-made), each order is scanline's
+    frame without the cache bit for bit, each pixel makes the same searches (a hit or a miss each),
+    and only the count of re-made trees can differ: every order misses each surface once first."""
+    want, _ = scanline_frame
+    geom = prepare(teapot, "f32")
+    frames = {}
+    for mb, depth in ((1.0, 30), (4096.0, 4)):
+        opts = Options(order=order, tile_size=8, threads=1, cache=True, cache_mb=mb, cache_depth=depth)
+        frames[mb] = render(teapot, opts, size=(40, 32), geometry=geom)
+        for name in AOV_NAMES:
+            if name not in ("cache_hits", "cache_misses"):
+                assert identical(getattr(frames[mb], name), getattr(want, name)), (name, mb)
+        f = frames[mb]
+        assert np.array_equal(f.cache_hits + f.cache_misses, want.patches_tested)
+    small, every = frames[1.0].extras["cache"], frames[4096.0].extras["cache"]
+    assert every["released"] == 0 and every["misses"] == every["surfaces"] == small["surfaces"]
+    assert small["released"] > 0 and small["misses"] > small["surfaces"]
