@@ -76,27 +76,38 @@ def add_count(counts, m, column, n):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def ahead(tin, row, hits, m):
+def ahead(tin, row, hits, m, counts, column):
     """The rays of m whose entry t into the box of `row` (tin[row, r]) lies before their own
-    closest hit: the others drop out of it."""
+    closest hit: the others drop out of it. Each counted in counts[r, column] unless column < 0
+    (a constant at every call: the test folds away)."""
     live = ZERO
     while m != ZERO:
         r = lowest_bit(m)
         m &= m - ONE
         if tin[row, r] < hits[r, H_TIN]:
             live |= bit(r)
+            if column >= 0:
+                counts[r, column] += 1
     return live
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _enters(corners, rays, tin, hits, row, r):
+    """Ray r (of rays) against a box's corners, shifted as slab shifts them: its entry t into
+    tin[row, r]; (does it meet the box before its own closest hit, its exit t)."""
+    lo0, lo1, lo2, hi0, hi1, hi2 = corners
+    ok, t_in, t_out = slab_at(lo0, lo1, lo2, hi0, hi1, hi2, rays[r])
+    tin[row, r] = t_in
+    return ok and t_in < hits[r, H_TIN], t_out
 
 
 @njit(cache=True, nogil=True, inline='always')
 def _meets(corners, br, row, r):
     """Ray r against a slot's box, its corners shifted by the slot's offset (_corners): its
     interval into tin[row, r], tout[row, r]; does it meet the box before its own closest hit?"""
-    lo0, lo1, lo2, hi0, hi1, hi2 = corners
-    ok, t_in, t_out = slab_at(lo0, lo1, lo2, hi0, hi1, hi2, br.lrays[r])
-    br.tin[row, r] = t_in
+    alive, t_out = _enters(corners, br.lrays, br.tin, br.hits, row, r)
     br.tout[row, r] = t_out
-    return ok and t_in < br.hits[r, H_TIN]
+    return alive
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -244,7 +255,7 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
         a = br.slot[sp]
         cached = a >= first
         row = br.row[sp]
-        live = ahead(br.tin, row, br.hits, br.mask[sp])
+        live = ahead(br.tin, row, br.hits, br.mask[sp], br.counts, -1)
         if live == ZERO or (HAS_TRIMS and trim_state(sl, a, pa, trims) < 0):  # noqa: F821
             if not cached:
                 free[nfree] = a
@@ -354,23 +365,53 @@ def make_bundle_search(variant):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _node_rays(node_box, node, br, row, m, bounded):
-    """Slab-test a BVH node against the rays of m (intervals into node_tin[row]); the rays that
-    meet it before their own closest hit. bounded: first try the bundle's bounds (frustum.py)."""
-    alive = ZERO
+def _node_corners(node_box, node):
+    """A BVH node's box as slab_at takes it (slab's shift by NO_SHIFT, -0.0, leaves every corner as
+    it is)."""
     box = node_box[node]
-    # slab's shift by NO_SHIFT (-0.0) leaves every corner as it is
-    lo0, lo1, lo2, hi0, hi1, hi2 = box[0], box[1], box[2], box[3], box[4], box[5]
-    if bounded and misses_all((lo0, lo1, lo2, hi0, hi1, hi2), br.bounds):
-        return alive
+    return box[0], box[1], box[2], box[3], box[4], box[5]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _node_rays(node_box, node, br, row, m):
+    """Slab-test a BVH node against the rays of m (intervals into node_tin[row]); the rays that
+    meet it before their own closest hit."""
+    alive = ZERO
+    corners = _node_corners(node_box, node)
     while m != ZERO:
         r = lowest_bit(m)
         m &= m - ONE
-        ok, t_in, _ = slab_at(lo0, lo1, lo2, hi0, hi1, hi2, br.rays[r])
-        br.node_tin[row, r] = t_in
-        if ok and t_in < br.hits[r, H_TIN]:
+        if _enters(corners, br.rays, br.node_tin, br.hits, row, r)[0]:
             alive |= bit(r)
     return alive
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _children_rays(node_box, left, right, br, row_l, row_r, m, surfaces):
+    """Both children of a BVH node against the rays of m (intervals into node_tin[row_l] and
+    [row_r]) in one pass over the rays, which also counts each ray's two box tests and the
+    surfaces of the leaf children among them; the rays of each child. With enough rays, a child
+    the bundle's bounds miss (frustum.py: the same verdicts) is not tested ray by ray."""
+    corners_l = _node_corners(node_box, left)
+    corners_r = _node_corners(node_box, right)
+    test_l = True
+    test_r = True
+    if at_least(m, MIN_RAYS):
+        test_l = not misses_all(corners_l, br.bounds)
+        test_r = not misses_all(corners_r, br.bounds)
+    alive_l = ZERO
+    alive_r = ZERO
+    counts = br.counts
+    while m != ZERO:
+        r = lowest_bit(m)
+        m &= m - ONE
+        counts[r, C_BOX_TESTS] += 2
+        counts[r, C_SURFACES] += surfaces
+        if test_l and _enters(corners_l, br.rays, br.node_tin, br.hits, row_l, r)[0]:
+            alive_l |= bit(r)
+        if test_r and _enters(corners_r, br.rays, br.node_tin, br.hits, row_r, r)[0]:
+            alive_r |= bit(r)
+    return alive_l, alive_r
 
 
 def _bvh_bundle_walk(agg, lv, trims, q, sl, br, active):
@@ -381,7 +422,7 @@ def _bvh_bundle_walk(agg, lv, trims, q, sl, br, active):
     if node_child[0, 0] < 0:
         add_count(counts, active, C_SURFACES, agg.leaf_count[0])
     bound_rays(br.bounds, br.rays, active)
-    m = _node_rays(agg.node_box, 0, br, br.node_row[0], active, False)
+    m = _node_rays(agg.node_box, 0, br, br.node_row[0], active)
     if m == ZERO:
         return
     br.node[0] = 0
@@ -390,28 +431,25 @@ def _bvh_bundle_walk(agg, lv, trims, q, sl, br, active):
     while top > 0:
         top -= 1
         node = br.node[top]
-        live = ahead(br.node_tin, br.node_row[top], br.hits, br.node_mask[top])
+        live = ahead(br.node_tin, br.node_row[top], br.hits, br.node_mask[top], counts, C_NODES)  # counted too
         if live == ZERO:
             continue
-        add_count(counts, live, C_NODES, 1)
         left = node_child[node, 0]
         if left < 0:
             first = agg.leaf_first[node]
+            add_count(counts, live, C_PATCHES, agg.leaf_count[node])  # the searches below count no patches
             for k in range(first, first + agg.leaf_count[node]):
-                add_count(counts, live, C_PATCHES, 1)
                 search(agg.items[k], lv, trims, q, sl, br, live)  # noqa: F821
             continue
         right = node_child[node, 1]
-        add_count(counts, live, C_BOX_TESTS, 2)
+        surfaces = 0
         for child in (left, right):
             if node_child[child, 0] < 0:
-                add_count(counts, live, C_SURFACES, agg.leaf_count[child])
+                surfaces += agg.leaf_count[child]
         # Both children's intervals go where they will be popped from: the nearer on top.
         row_l = br.node_row[top]
         row_r = br.node_row[top + 1]
-        bounded = at_least(live, MIN_RAYS)
-        ml = _node_rays(agg.node_box, left, br, row_l, live, bounded)
-        mr = _node_rays(agg.node_box, right, br, row_r, live, bounded)
+        ml, mr = _children_rays(agg.node_box, left, right, br, row_l, row_r, live, surfaces)
         if ml == ZERO and mr == ZERO:
             continue
         if ml == ZERO or mr == ZERO:
