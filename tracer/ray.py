@@ -73,12 +73,18 @@ def slab(bx, fx, fy, fz, ray):
     direction component is tested by containment instead of by division, so
     no inf * 0 = NaN can appear.
     """
+    return slab_at(bx[0] + fx, bx[1] + fy, bx[2] + fz, bx[3] + fx, bx[4] + fy, bx[5] + fz, ray)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def slab_at(lo0, lo1, lo2, hi0, hi1, hi2, ray):
+    """slab for the box already shifted (lo xyz, hi xyz): where several rays meet one box, the
+    shifted corners are computed once (the same sums)."""
     t_in = ray[R_TMIN]
     t_out = math.inf
     for c in range(3):
-        f = fx if c == 0 else (fy if c == 1 else fz)
-        lo = bx[c] + f - ray[R_O + c]
-        hi = bx[3 + c] + f - ray[R_O + c]
+        lo = (lo0 if c == 0 else (lo1 if c == 1 else lo2)) - ray[R_O + c]
+        hi = (hi0 if c == 0 else (hi1 if c == 1 else hi2)) - ray[R_O + c]
         if ray[R_D + c] == 0.0:
             if lo > 0.0 or hi < 0.0:
                 return False, t_in, t_out
