@@ -120,7 +120,7 @@ def check_pixels(scene, opts, pixels, size=SIZE):
 def test_teapot_trees_are_the_render_s_rays():
     scene = load_scene(TEAPOT)
     pixels = [(x, y) for y in range(1, SIZE[1], 3) for x in range(1, SIZE[0], 3)]
-    trees = check_pixels(scene, Options(), pixels)
+    trees = check_pixels(scene, Options(light_samples=64), pixels)  # enough samples for umbra's lit test
     rays = [r for t in trees for r in t.rays]
     assert any(r.kind == "umbra_test" and r.hit for r in rays)
     kinds = {k: [r for r in rays if r.kind == k] for k in ("shadow", "penumbra_test", "reflected")}

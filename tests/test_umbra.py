@@ -146,9 +146,27 @@ def test_umbra_is_bit_identical_to_tracing_every_sample(light, settings):
         assert np.array_equal(getattr(base, name), getattr(fast, name), equal_nan=True), name
     proven = (fast.penumbra == 2) & (base.shadow_rays > 0)  # in the umbra, and not trivially
     assert proven.sum() >= 10 and np.all(fast.shadow[proven] == 0.0) and np.all(fast.shadow_rays[proven] == 0)
-    assert np.all(fast.shadow_rays <= tmax.shadow_rays) and fast.shadow_rays.sum() < tmax.shadow_rays.sum()
-    assert np.array_equal(fast.penumbra == 0, tmax.penumbra == 0)  # the same points proven lit
+    assert np.all(fast.shadow_rays <= base.shadow_rays) and fast.shadow_rays.sum() < base.shadow_rays.sum()
+    assert np.all(tmax.penumbra[fast.penumbra == 0] == 0)  # proven lit by tmax's test too
     assert fast.extras["lighting"]["umbra_tests"] > 0
+
+
+@pytest.mark.parametrize("light", [SPHERE, SEGMENT, RECT], ids=["sphere", "segment", "rect"])
+def test_umbra_runs_the_lit_test_where_it_pays(light):
+    """With the samples of a point traced as one bundle, umbra's lit test runs only for lights with
+    WORTH_TESTING samples per unit of their angular size; where it runs, it proves what tmax's
+    proves; where it does not, the points are sampled, and the image is the same."""
+    pays = {"sphere": 100, "segment": 160, "rect": 100}[light["type"]]  # 700 x size at the teapot
+    for samples, runs in ((8, False), (pays, True)):
+        scene = teapot_light(light, samples)
+        tmax = render(scene, Options(penumbra="tmax"), size=SIZE)
+        fast = render(scene, Options(penumbra="umbra"), size=SIZE)
+        assert np.array_equal(fast.radiance, tmax.radiance, equal_nan=True)
+        if runs:
+            assert np.array_equal(fast.penumbra == 0, tmax.penumbra == 0) and (fast.penumbra == 0).sum() > 50
+            assert np.all(fast.shadow_rays <= tmax.shadow_rays)
+        else:
+            assert not (fast.penumbra == 0).any() and (tmax.penumbra == 0).sum() > 50
 
 
 def test_the_ray_tree_shows_the_umbra_test_and_its_patch():
