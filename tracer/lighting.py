@@ -48,11 +48,11 @@ from .vertices import Vertices, environment, facing, schlick
 
 PHASES = ("shadow_rays", "penumbra_tests", "secondary_rays", "shading")
 
-# Where a point's samples go as one bundle (shadow_bundles.py), the lit test of `umbra` runs only if the light
-# has at least this many samples per unit of its angular size (half extent over distance): a
-# wider cone costs the test more, more samples cost the bundle more. Measured on the teapot (160^2,
-# one thread, sphere lights of radius 0.005-0.05 of the diagonal, 8-64 samples), the test pays from
-# 8 samples at radius 0.005, 10 at 0.01, 22 at 0.02 and 70 at 0.05, about 700 per unit of size.
+# Where a point's samples go as one bundle (shadow_bundles.py), the lit test of `umbra` runs only
+# if the light has at least this many samples per unit of its angular size (half extent over
+# distance): a wider cone costs the test more, more samples cost the bundle more. Measured on the
+# teapot (160^2, one thread, sphere lights of radius 0.005-0.05 of the diagonal, 8-64 samples), the
+# test pays from 8 samples at radius 0.005, 10 at 0.01, 22 at 0.02 and 70 at 0.05: about 700.
 WORTH_TESTING = 700.0
 
 
@@ -63,7 +63,7 @@ class Lighting:
         self.opts, self.scene, self.geom = opts, scene, geom
         self.tracer = BatchTracer(geom, opts, inputs, on_compile)
         self.bundles = PointBundles(self.tracer) if shares_tree(opts) else None
-        # 'umbra' runs the lit test only where it pays (WORTH_TESTING); 'expanded' and 'tmax' show it everywhere
+        # 'umbra' runs the lit test where it pays (WORTH_TESTING); 'expanded' and 'tmax' show it everywhere
         self.worth_testing = self.bundles is not None and opts.penumbra == "umbra"
         self.slope = float(inputs.sizes[0])  # threshold of detail per unit distance (adaptive)
         mats = scene.materials

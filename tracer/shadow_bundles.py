@@ -49,7 +49,7 @@ def _trace_point_bundles(rays, starts, scene, q, occluded, effort, sl, br):
 def make_point_bundle_kernel(variant):
     """trace(rays, starts, scene, q, occluded, effort, sl, br): batch rays (N, ray_batch.RB_LEN),
     grouped into bundles of at most MAX_RAYS at the offsets `starts`, through the BVH; occluded (N,)
-    bool and effort (N,) int32 out; sl the thread's slots, br its BundleRays (point_bundle_rays)."""
+    bool and effort (N,) int32 out; sl the thread's slots, br its BundleRays of MAX_RAYS rays."""
     walk = make_bvh_bundle_walk(make_bundle_search(variant))
     return njit(cache=True, nogil=True, _nrt=False)(specialise(_trace_point_bundles, walk=walk))
 
