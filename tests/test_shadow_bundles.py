@@ -13,10 +13,11 @@ from tracer.shadow_bundles import PointBundles, bundle_starts, shares_tree
 import scenes as S
 
 
-def test_bundle_starts_cut_per_point_and_every_max_rays():
-    point = np.array([0] * 3 + [2] * (MAX_RAYS + 5) + [7])
-    starts = bundle_starts(point)
-    assert starts.tolist() == [0, 3, 3 + MAX_RAYS, 3 + MAX_RAYS + 5, len(point)]
+def test_bundle_starts_pack_whole_points_and_cut_only_the_largest():
+    point = np.array([0] * 3 + [2] * (MAX_RAYS + 5) + [7] + [8] * (MAX_RAYS - 5) + [9] * 6)
+    starts = bundle_starts(point)  # 0 | 2's first MAX_RAYS | 2's last 5, 7 | 8 | 9 (8 and 9: one too many)
+    assert starts.tolist() == [0, 3, 3 + MAX_RAYS, 3 + MAX_RAYS + 6, 3 + 2 * MAX_RAYS + 1, len(point)]
+    assert bundle_starts(np.repeat(np.arange(10), 16)).tolist() == [0, 64, 128, 160]
     assert bundle_starts(np.zeros(0, np.int64)).tolist() == [0]
 
 

@@ -10,8 +10,8 @@ primary one. Misses see the background's grey.
 Direct light at a vertex: ambient plus Lambert + Phong per light sample (light_samples.py),
 each sample weighted by its visibility: 0 where the sample lies behind the surface (decided
 without a ray where options.trivial_tests, Lischinski 6) or the shadow ray from the robust
-origin (origins.py) to it is occluded (a point's rays as one bundle: shadow_bundles.py, where
-that changes no answer; else ray_batch's any-hit kernel). Area lights first ask the
+origin (origins.py) to it is occluded (neighbouring points' rays in bundles: shadow_bundles.py,
+where that changes no answer; else ray_batch's any-hit kernel). Area lights first ask the
 fast penumbra test (penumbra.py) and skip the samples of points it proves lit. Neither test
 changes a bit of the image: they skip only rays whose answer is already known. A scene without
 lights has a headlight at the eye, which casts no shadows (they would hide behind their casters).
@@ -48,7 +48,7 @@ from .vertices import Vertices, environment, facing, schlick
 
 PHASES = ("shadow_rays", "penumbra_tests", "secondary_rays", "shading")
 
-# Where a point's samples go as one bundle (shadow_bundles.py), the lit test of `umbra` runs only
+# Where the samples go in bundles (shadow_bundles.py), the lit test of `umbra` runs only
 # if the light has at least this many samples per unit of its angular size (half extent over
 # distance): a wider cone costs the test more, more samples cost the bundle more. Measured on the
 # teapot (160^2, one thread, sphere lights of radius 0.005-0.05 of the diagonal, 8-64 samples), the
@@ -233,7 +233,7 @@ class Lighting:
         o = origin[rows]
         dt = v.grow[rows] * np.linalg.norm(lp[rows, cols] - o, axis=1)
         rays = batch_rays(o, lp[rows, cols] - o, 0.0, 1.0, v.threshold[rows], dt)
-        if self.bundles is not None:  # a point's rays as one bundle (shadow_bundles.py)
+        if self.bundles is not None:  # in bundles, consecutive points' rays together (shadow_bundles.py)
             occluded[rows, cols], effort = self.bundles.occluded(rays, rows)
         else:
             occluded[rows, cols], effort = self.tracer.occluded(rays)

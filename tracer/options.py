@@ -92,7 +92,7 @@ class Options(Record):
                          "each box only by its own shrink factor (Lemma 4.2); umbra adds umbra detection (Lemma "
                          "4.3): a point whose every shadow ray is proven to cross one patch traces no samples "
                          "either, and it runs the lit test only where that costs less than the point's samples "
-                         "traced as one bundle. The image is the same",
+                         "traced in bundles. The image is the same",
                          choices=PENUMBRAS)
     trivial_tests: bool = _lit(True, "decide shadow rays without tracing where the surface faces away from the "
                                "light sample (Lischinski 6); the image is the same")
