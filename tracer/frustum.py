@@ -23,7 +23,7 @@ import math
 import numpy as np
 
 from .jit import njit
-from .ray import _T_SLACK, R_D, R_INV, R_O, R_TMIN
+from .ray import T_SLACK, R_D, R_INV, R_O, R_TMIN
 
 F_OLO, F_OHI, F_ILO, F_IHI, F_TMIN, F_OK = 0, 3, 6, 9, 12, 13
 F_LEN = 14
@@ -94,7 +94,7 @@ def misses_all(corners, fr):
         b_lo, b_hi = _extent(hi0 if c == 0 else (hi1 if c == 1 else hi2), fr, c)
         near = min(a_lo, b_lo)
         far = max(a_hi, b_hi)
-        far += abs(far) * _T_SLACK
+        far += abs(far) * T_SLACK
         if near > t_in:
             t_in = near
         if far < t_out:

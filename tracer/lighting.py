@@ -264,26 +264,28 @@ class Lighting:
         """(m,) bool: Lemma 3.1 / 4.2 (penumbra.py) prove every sample ray from these origins to
         the sample points lp (m, S, 3) unoccluded; and (m,) bool: the points tested."""
         lit = np.zeros(len(origin), bool)
+        light = self.lights[li]
+        centre, half = light.centre(), half_extent(light)
         ask = asked if self.grown != "tmax" else asked & inside(origin, self.box)
         if self.worth_testing:  # the test must cost less than the bundle of samples it spares
-            size = half_extent(self.lights[li]).max() / np.linalg.norm(self.lights[li].centre() - origin, axis=1)
+            size = half.max() / np.linalg.norm(centre - origin, axis=1)
             ask &= lp.shape[1] >= WORTH_TESTING * size
         idx = np.nonzero(ask)[0]
         if len(idx):
             es = self.sets[li]
             count = lp.shape[1]
             o = origin[idx]
-            centre = batch_rays(o, self.lights[li].centre() - o, 0.0, 1.0)
-            cone = self.opts.criterion != "adaptive" and self.opts.split == "length"
-            if cone:  # one cone search stands for the samples' (ray_batch._penumbra_visit)
-                samples = np.zeros((0, centre.shape[1]))
+            centre_rays = batch_rays(o, centre - o, 0.0, 1.0)
+            cone = shares_tree(self.opts)  # one cone search stands for the samples' (ray_batch._penumbra_visit)
+            if cone:
+                samples = np.zeros((0, centre_rays.shape[1]))
             else:
                 ends = lp[idx].reshape(-1, 3)
                 starts = np.repeat(o, count, axis=0)
                 samples = batch_rays(starts, ends - starts, 0.0, 1.0, np.repeat(threshold[idx], count),
                                      np.repeat(grow[idx], count) * np.linalg.norm(ends - starts, axis=1))
-            lit[idx] = self.tracer.proven_lit(es.record, es.stack, es.grown, centre, samples, count,
-                                              half_extent(self.lights[li]), cone)[0]
+            lit[idx] = self.tracer.proven_lit(es.record, es.stack, es.grown, centre_rays, samples, count, half,
+                                              cone)[0]
             with self._lock:
                 self.centre_rays += len(idx)
         return lit, ask

@@ -14,7 +14,7 @@ RAY_LEN = 19
 H_TIN, H_TOUT, H_LO, H_HI, H_U, H_V, H_PATCH, H_DEPTH, H_DU, H_DV = 0, 1, 2, 5, 8, 9, 10, 11, 12, 13
 HIT_LEN = 14
 
-_T_SLACK = 4.0 * 2.0 ** -52  # widen slab exits by a few float64 ulps: grazing rays keep their boxes
+T_SLACK = 4.0 * 2.0 ** -52  # widen slab exits by a few float64 ulps: grazing rays keep their boxes
 # slab's offset for a box in the ray's own coordinates: x + -0.0 is x for every x, so the
 # additions fold away (x + 0.0 turns -0.0 into 0.0, which LLVM must keep; only the sign of a
 # zero t could differ, and a walk only compares those)
@@ -94,7 +94,7 @@ def slab_at(lo0, lo1, lo2, hi0, hi1, hi2, ray):
         b = hi * inv
         if a > b:
             a, b = b, a
-        b += abs(b) * _T_SLACK
+        b += abs(b) * T_SLACK
         if a > t_in:
             t_in = a
         if b < t_out:

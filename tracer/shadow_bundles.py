@@ -59,7 +59,8 @@ def make_point_bundle_kernel(variant):
 
 
 def shares_tree(opts) -> bool:
-    """Does every ray descend the same tree of sub-patches (so a bundle changes no answer)?"""
+    """Does every ray descend the same tree of sub-patches (so a bundle, or penumbra.py's cone search
+    standing for a point's rays, changes no answer)?"""
     return opts.criterion != "adaptive" and opts.split == "length"
 
 
