@@ -23,6 +23,7 @@ Everything here is numpy on whole arrays (2048 x 2048 in a fraction of a frame's
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
@@ -249,20 +250,31 @@ def order_units(width: int, height: int, order: str, tile_size: int, bundle=(1, 
         raise ValueError(f"order: expected one of {', '.join(ORDERS)}, got {order!r}")
     if width <= 0 or height <= 0:
         return []
+    if order != "itembuffer":
+        return list(_image_units(width, height, order, tile_size, tuple(bundle)))
+    if boxes is None or view is None:
+        raise ValueError("order itembuffer: needs the scene's patch boxes and the view")
+    cols, rows = bundle
+    ncols, nrows = _ceil_div(width, cols), _ceil_div(height, rows)
+    tcols, trows = tile_blocks(tile_size, bundle)
+    items = item_buffer(boxes, view, width, height)
+    ids, starts = itembuffer_sequence(ncols, nrows, width, height, bundle, tcols * trows, items,
+                                      peano_side(tile_size, bundle))
+    return block_units(width, height, bundle, ids, starts)
+
+
+@lru_cache(maxsize=8)
+def _image_units(width: int, height: int, order: str, tile_size: int, bundle: tuple) -> tuple:
+    """order_units of the orders that depend on the image alone, made once per image and kept: a
+    steady frame (the viewer's, a benchmark's) spends no time on them. The kernels only read them."""
     cols, rows = bundle
     ncols, nrows = _ceil_div(width, cols), _ceil_div(height, rows)
     tcols, trows = tile_blocks(tile_size, bundle)
     if order == "scanline":
         ids, starts = scanline_sequence(ncols, nrows, tcols, trows)
-    elif order == "peano":
-        ids, starts = peano_sequence(ncols, nrows, peano_side(tile_size, bundle))
     else:
-        if boxes is None or view is None:
-            raise ValueError("order itembuffer: needs the scene's patch boxes and the view")
-        items = item_buffer(boxes, view, width, height)
-        ids, starts = itembuffer_sequence(ncols, nrows, width, height, bundle, tcols * trows, items,
-                                          peano_side(tile_size, bundle))
-    return block_units(width, height, bundle, ids, starts)
+        ids, starts = peano_sequence(ncols, nrows, peano_side(tile_size, bundle))
+    return tuple(block_units(width, height, bundle, ids, starts))
 
 
 def unit_count(width: int, height: int, order: str, tile_size: int, bundle=(1, 1)) -> int:

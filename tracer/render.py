@@ -313,12 +313,22 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
         lighting = frame_lighting(scene, geom, opts, inputs, pixel_angle, eye, on_compile)
         frame.add_lighting(opts.shadows)
 
+    local = threading.local()  # a thread's scratch for each cache it borrows, kept from unit to unit
+
+    def scratch_for(cache):
+        mine = getattr(local, "scratch", None)
+        if mine is None:
+            mine = local.scratch = {}
+        if id(cache) not in mine:
+            mine[id(cache)] = tile_scratch(inputs, cache)
+        return mine[id(cache)]
+
     def work(unit):
         if cancel is not None and cancel.is_set():
             return None
         cache = lent.get() if caches else None
         try:
-            kernel(unit.pixels, unit.blocks, origins, dirs, *args, tile_scratch(inputs, cache))
+            kernel(unit.pixels, unit.blocks, origins, dirs, *args, scratch_for(cache))
         finally:
             if cache is not None:
                 lent.put(cache)
@@ -326,18 +336,24 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
             lighting.shade_unit(frame, unit.pixels)
         return unit
 
+    def finished(unit):
+        if unit is None:
+            return
+        frame.tiles_done += 1
+        if progress is not None:
+            progress(1)
+        if on_tile is not None:
+            on_tile(frame, unit)
+
     start = time.perf_counter()
-    with ThreadPoolExecutor(max_workers=thread_count(opts)) as pool:
-        futures = [pool.submit(work, u) for u in units]
-        for fut in as_completed(futures):
-            unit = fut.result()
-            if unit is None:
-                continue
-            frame.tiles_done += 1
-            if progress is not None:
-                progress(1)
-            if on_tile is not None:
-                on_tile(frame, unit)
+    threads = thread_count(opts)
+    if threads == 1:  # in this thread: one worker would only add a hand-over per unit
+        for u in units:
+            finished(work(u))
+    else:
+        with ThreadPoolExecutor(max_workers=threads) as pool:
+            for fut in as_completed([pool.submit(work, u) for u in units]):
+                finished(fut.result())
     frame.seconds = time.perf_counter() - start
     if lighting is not None:
         frame.extras["lighting"] = lighting.report()
