@@ -25,11 +25,11 @@ from .aggregate import BvhNodes  # noqa: F401 (the record the walk reads)
 from .drivers import WIDE_BITS, wide_leaves, wide_slots
 from .frustum import F_LEN, MIN_RAYS, at_least, bound_rays, misses_all
 from .jit import njit, specialise
-from .ray import H_TIN, RAY_LEN, R_O, slab_at
+from .ray import H_TIN, RAY_LEN, R_O, R_TMIN, slab_at
 from .records import C_BOX_TESTS, C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES
 from .search_steps import ADAPTIVE, halve, hull_accepts, judge_known, report, root_at, tighten, trim_accepts
 from .search_steps import trim_state
-from .subpatch import I_DEPTH, I_LAST, I_STALLED, M_DPAR, M_OX, M_TIN, M_TOUT, hull_hit, hull_off_plane, patch_info
+from .subpatch import I_DEPTH, I_LAST, I_STALLED, M_DPAR, M_OX, M_TIN, M_TOUT, hull_behind, hull_hit, hull_off_plane, patch_info
 from .subpatch import seam_plane
 from .surface_cache import S_DEPTH, S_FIRST, S_HITS, S_MISSES, copy_slot, take_pair, touch
 
@@ -121,21 +121,28 @@ def _corners(sl, s):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def open_rays(sl, s, br, row, m):
+def _behind(sl, s, pa, br, row, r):
+    """Is slot s, whose box holds ray r's origin, wholly behind the ray's side plane (as
+    search_steps.open_child drops it for the single ray)?"""
+    return br.tin[row, r] <= br.lrays[r, R_TMIN] and hull_behind(sl, s, pa, br.lrays[r])
+
+
+@njit(cache=True, nogil=True, inline='always')
+def open_rays(sl, s, pa, br, row, m):
     """Slab-test slot s's box against the rays of m (intervals into tin[row], tout[row]); the
-    rays that meet it before their own closest hit."""
+    rays that meet it before their own closest hit (and are not behind it: _behind)."""
     alive = ZERO
     corners = _corners(sl, s)
     while m != ZERO:
         r = lowest_bit(m)
         m &= m - ONE
-        if _meets(corners, br, row, r):
+        if _meets(corners, br, row, r) and not _behind(sl, s, pa, br, row, r):
             alive |= bit(r)
     return alive
 
 
 @njit(cache=True, nogil=True, inline='always')
-def open_pair(sl, a, b, br, row_a, row_b, m):
+def open_pair(sl, a, b, pa, br, row_a, row_b, m):
     """open_rays for the halves a and b in one pass over the rays (each ray's two slab tests side
     by side); the rays of each half. (The bundle's bounds, frustum.py, rarely reject a half: counted
     on the teapot, 12 % of the halves tested by four rays or more, saving less than they cost.)"""
@@ -146,9 +153,9 @@ def open_pair(sl, a, b, br, row_a, row_b, m):
     while m != ZERO:
         r = lowest_bit(m)
         m &= m - ONE
-        if _meets(corners_a, br, row_a, r):
+        if _meets(corners_a, br, row_a, r) and not _behind(sl, a, pa, br, row_a, r):
             alive_a |= bit(r)
-        if _meets(corners_b, br, row_b, r):
+        if _meets(corners_b, br, row_b, r) and not _behind(sl, b, pa, br, row_b, r):
             alive_b |= bit(r)
     return alive_a, alive_b
 
@@ -171,7 +178,7 @@ def push_halves(sl, a, b, sp, pa, br, go, direction):
     half on top. Returns the new stack height and the halves no ray keeps (-1 for none)."""
     row_a = br.row[sp]
     row_b = br.row[sp + 1]
-    keep_a, keep_b = open_pair(sl, a, b, br, row_a, row_b, go)
+    keep_a, keep_b = open_pair(sl, a, b, pa, br, row_a, row_b, go)
     both = keep_a & keep_b
     while both != ZERO:  # as sort_halves: the far half across the seam plane and the ray's planes first
         r = lowest_bit(both)
@@ -248,7 +255,7 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
         root_at(sl, s, pa, lv)
     add_count(br.counts, active, C_EFFORT, 1)
     br.slot[0] = s
-    br.mask[0] = open_rays(sl, s, br, br.row[0], active)
+    br.mask[0] = open_rays(sl, s, pa, br, br.row[0], active)
     sp = 1 if br.mask[0] != ZERO else 0
     while sp > 0:
         sp -= 1

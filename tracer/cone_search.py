@@ -19,7 +19,7 @@ from __future__ import annotations
 from .jit import njit, specialise
 from .ray import R_D, R_O
 from .search_steps import enter_frame, halve, judge, root, tighten, trim_state
-from .subpatch import M_OX, M_TIN, M_TOUT, patch_info
+from .subpatch import M_OX, M_TIN, M_TOUT, hull_behind, patch_info
 
 REL = 2.0 ** -44  # relative slack beyond the slab test's own (it widens its exits by 2^-50)
 
@@ -64,11 +64,15 @@ def cone_meets(box, fx, fy, fz, ray, half, t_max):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _open(sl, s, ray, half, t_max):
+def _open(sl, s, pa, ray, half, t_max):
+    """Does the cone meet slot s's box (and, where the box holds the origin, not only behind the
+    side plane every ray of the cone leaves in front of: ray.set_side, lighting._proven_lit)?"""
     mf = sl.mf
     ok, s_in = cone_meets(sl.box[s], mf[s, M_OX], mf[s, M_OX + 1], mf[s, M_OX + 2], ray, half, t_max)
     mf[s, M_TIN] = s_in
     mf[s, M_TOUT] = t_max
+    if ok and s_in <= 0.0 and hull_behind(sl, s, pa, ray):
+        ok = False
     return 1 if ok else 0
 
 
@@ -80,7 +84,7 @@ def _cone_search(p, lv, trims, ray, half, q, sl, budget):
     mf = sl.mf
     s = root(sl, pa, lv)
     effort = 1
-    sp = _open(sl, s, lray, half, 1.0)
+    sp = _open(sl, s, pa, lray, half, 1.0)
     while sp > 0:
         if effort >= budget:
             return True, effort  # too costly to settle: the rays will tell
@@ -94,8 +98,8 @@ def _cone_search(p, lv, trims, ray, half, q, sl, budget):
         tighten(sl, a, pa, lv)
         b = order[sp + 1]
         halve(sl, a, b, pa, lray, q, d_crit, shrank, HAS_GENERAL)  # noqa: F821
-        alive_a = _open(sl, a, lray, half, 1.0)
-        alive_b = _open(sl, b, lray, half, 1.0)
+        alive_a = _open(sl, a, pa, lray, half, 1.0)
+        alive_b = _open(sl, b, pa, lray, half, 1.0)
         near_a = mf[a, M_TIN] <= mf[b, M_TIN]
         far = b if near_a else a
         near = a if near_a else b

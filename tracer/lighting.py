@@ -218,7 +218,8 @@ class Lighting:
             if self.umbra is not None:  # first: it is cheap, and a point in umbra spares the lit test's walk
                 dark = self._proven_umbra(v, origin, li, asked)
                 need = need & ~dark[:, None]
-            lit, tested = self._proven_lit(origin, li, v.threshold, v.grow, asked if dark is None else asked & ~dark, lp)
+            lit, tested = self._proven_lit(origin, li, v.threshold, v.grow, asked if dark is None else asked & ~dark, lp,
+                                           v.normal)
             need = need & ~lit[:, None]
             if self.recorder is not None:
                 self.recorder("proven_lit", pix=v.pix[tested], code=v.code[tested], light=li, origin=origin[tested],
@@ -232,7 +233,7 @@ class Lighting:
             occluded[dark] = True
         o = origin[rows]
         dt = v.grow[rows] * np.linalg.norm(lp[rows, cols] - o, axis=1)
-        rays = batch_rays(o, lp[rows, cols] - o, 0.0, 1.0, v.threshold[rows], dt)
+        rays = batch_rays(o, lp[rows, cols] - o, 0.0, 1.0, v.threshold[rows], dt, v.normal[rows])
         if self.bundles is not None:  # in bundles, consecutive points' rays together (shadow_bundles.py)
             occluded[rows, cols], effort = self.bundles.occluded(rays, rows)
         else:
@@ -260,9 +261,10 @@ class Lighting:
             self.umbra_tests += int(ask.sum())
         return cover >= 0
 
-    def _proven_lit(self, origin, li, threshold, grow, asked, lp):
+    def _proven_lit(self, origin, li, threshold, grow, asked, lp, normal):
         """(m,) bool: Lemma 3.1 / 4.2 (penumbra.py) prove every sample ray from these origins to
-        the sample points lp (m, S, 3) unoccluded; and (m,) bool: the points tested."""
+        the sample points lp (m, S, 3) unoccluded; and (m,) bool: the points tested. normal (m, 3):
+        the side the rays leave on."""
         lit = np.zeros(len(origin), bool)
         light = self.lights[li]
         centre, half = light.centre(), half_extent(light)
@@ -275,7 +277,11 @@ class Lighting:
             es = self.sets[li]
             count = lp.shape[1]
             o = origin[idx]
-            centre_rays = batch_rays(o, centre - o, 0.0, 1.0)
+            n = normal[idx]
+            # the cone's side plane: only where every ray of the cone leaves in front of it
+            clear = dot3(n, centre - o) > np.abs(n) @ half * (1.0 + 2.0 ** -30) + 2.0 ** -40 * (
+                np.abs(n).sum(axis=1) * np.abs(centre - o).sum(axis=1))
+            centre_rays = batch_rays(o, centre - o, 0.0, 1.0, side=np.where(clear[:, None], n, 0.0))
             cone = shares_tree(self.opts)  # one cone search stands for the samples' (ray_batch._penumbra_visit)
             if cone:
                 samples = np.zeros((0, centre_rays.shape[1]))
@@ -283,7 +289,8 @@ class Lighting:
                 ends = lp[idx].reshape(-1, 3)
                 starts = np.repeat(o, count, axis=0)
                 samples = batch_rays(starts, ends - starts, 0.0, 1.0, np.repeat(threshold[idx], count),
-                                     np.repeat(grow[idx], count) * np.linalg.norm(ends - starts, axis=1))
+                                     np.repeat(grow[idx], count) * np.linalg.norm(ends - starts, axis=1),
+                                     np.repeat(n, count, axis=0))
             lit[idx] = self.tracer.proven_lit(es.record, es.stack, es.grown, centre_rays, samples, count, half,
                                               cone)[0]
             with self._lock:
@@ -326,7 +333,7 @@ class Lighting:
         if self.slope > 0.0:  # adaptive: a curved mirror spreads the beam (curvature.py)
             kappa = max_curvature(self.scene, v.patch[src], patch_parameters(self.geom, v.patch[src], v.uv[src]))
             grow = grow + 2.0 * kappa * v.threshold[src]
-        rays = batch_rays(origin, d, 0.0, np.inf, v.threshold[src], grow)
+        rays = batch_rays(origin, d, 0.0, np.inf, v.threshold[src], grow, side)
         out = self.tracer.closest(rays)
         hit = out.hit[0]
         if self.recorder is not None:

@@ -7,9 +7,10 @@ from .jit import njit
 
 # Ray record: origin, direction, 1/direction, t_min, threshold of detail T(t) = T0 + dT*t,
 # the unit normals of two orthogonal planes that meet in the ray (for hull tests), and the boxes
-# its searches may still compute (inf: no budget; the float64 reference's bound).
-R_O, R_D, R_INV, R_TMIN, R_T0, R_DT, R_N1, R_N2, R_BUDGET = 0, 3, 6, 9, 10, 11, 12, 15, 18
-RAY_LEN = 19
+# its searches may still compute (inf: no budget; the float64 reference's bound), and the normal
+# of a plane through the origin that the ray never goes behind (set_side; zero: none).
+R_O, R_D, R_INV, R_TMIN, R_T0, R_DT, R_N1, R_N2, R_BUDGET, R_SIDE = 0, 3, 6, 9, 10, 11, 12, 15, 18, 19
+RAY_LEN = 22
 # Hit record: entry/exit t of the hit box, world box, (u, v), patch, depth, interval sizes.
 H_TIN, H_TOUT, H_LO, H_HI, H_U, H_V, H_PATCH, H_DEPTH, H_DU, H_DV = 0, 1, 2, 5, 8, 9, 10, 11, 12, 13
 HIT_LEN = 14
@@ -46,6 +47,8 @@ def make_ray(ray, ox, oy, oz, dx, dy, dz, t_min, t0, dt):
     ray[R_T0] = t0
     ray[R_DT] = dt
     ray[R_BUDGET] = math.inf
+    for c in range(3):
+        ray[R_SIDE + c] = 0.0
     # n1 = d x (axis of d's smallest component), n2 = d x n1, both normalised.
     ax = 0
     if abs(dy) < abs(dx) and abs(dy) <= abs(dz):
@@ -100,3 +103,17 @@ def slab_at(lo0, lo1, lo2, hi0, hi1, hi2, ray):
         if b < t_out:
             t_out = b
     return t_in <= t_out, t_in, t_out
+
+
+@njit(cache=True, nogil=True, inline='always')
+def set_side(ray, nx, ny, nz):
+    """Record the plane through the ray's origin with normal (nx, ny, nz), the side a secondary ray
+    leaves its surface on, where the ray goes in front of it (n . d > 0, the products exact to
+    within a few ulps: a margin of 2^-40 of |n| |d| leaves no doubt): sub-patches whose hulls lie
+    wholly behind it cannot meet the ray (subpatch.hull_behind)."""
+    dot = nx * ray[R_D] + ny * ray[R_D + 1] + nz * ray[R_D + 2]
+    size = (abs(nx) + abs(ny) + abs(nz)) * (abs(ray[R_D]) + abs(ray[R_D + 1]) + abs(ray[R_D + 2]))
+    keep = dot > 2.0 ** -40 * size and ray[R_TMIN] >= 0.0
+    ray[R_SIDE] = nx if keep else 0.0
+    ray[R_SIDE + 1] = ny if keep else 0.0
+    ray[R_SIDE + 2] = nz if keep else 0.0

@@ -23,14 +23,22 @@ from .cone_search import make_cone_search
 from .drivers import make_search
 from .jit import njit, specialise
 from .kernel_channels import Outputs, allocate
-from .ray import H_TIN, R_TMIN, make_ray
+from .ray import H_TIN, R_TMIN, make_ray, set_side
 from .records import C_EFFORT, COUNTER_LEN, no_trace
 from .tile_kernel import _walk_of, tile_scratch, write_pixel
 from .variants import compiled, variant_for
 
-# A batch ray: origin, direction, t_min, t_max, threshold of detail T0 and dT.
-RB_O, RB_D, RB_TMIN, RB_TMAX, RB_T0, RB_DT = 0, 3, 6, 7, 8, 9
-RB_LEN = 10
+# A batch ray: origin, direction, t_min, t_max, threshold of detail T0 and dT, and the normal of
+# the side its origin left the surface on (ray.set_side; zero: none).
+RB_O, RB_D, RB_TMIN, RB_TMAX, RB_T0, RB_DT, RB_SIDE = 0, 3, 6, 7, 8, 9, 10
+RB_LEN = 13
+
+
+@njit(cache=True, nogil=True, inline='always')
+def start_ray(ray, r):
+    """The ray record of batch ray r (RB_LEN,)."""
+    make_ray(ray, r[0], r[1], r[2], r[3], r[4], r[5], r[RB_TMIN], r[RB_T0], r[RB_DT])
+    set_side(ray, r[RB_SIDE], r[RB_SIDE + 1], r[RB_SIDE + 2])
 
 
 def _trace_batch(rays, scene, q, leaf_patch, out, trace, scratch):
@@ -39,7 +47,7 @@ def _trace_batch(rays, scene, q, leaf_patch, out, trace, scratch):
     sl, stack, rs, _ = scratch
     for i in range(rays.shape[0]):
         r = rays[i]
-        make_ray(rs.ray, r[0], r[1], r[2], r[3], r[4], r[5], r[RB_TMIN], r[RB_T0], r[RB_DT])
+        start_ray(rs.ray, r)
         t_max = r[RB_TMAX]
         rs.hit[H_TIN] = t_max
         for k in range(COUNTER_LEN):
@@ -114,7 +122,7 @@ def _penumbra_visit(p, ctx, trims, ray, hit, q, sl, trace):
     spent = 0
     for j in range(first, first + ctx.count):
         r = ctx.samples[j]
-        make_ray(ctx.ray, r[0], r[1], r[2], r[3], r[4], r[5], r[RB_TMIN], r[RB_T0], r[RB_DT])
+        start_ray(ctx.ray, r)
         ctx.hit[H_TIN] = r[RB_TMAX]
         spent += search(p, ctx.leaves, ctx.trims, ctx.ray, ctx.hit, q, sl, trace)  # noqa: F821
         if ctx.hit[H_TIN] < r[RB_TMAX]:
@@ -141,7 +149,7 @@ def _trace_penumbra(rays, ctx, agg, q, lit, effort, trace, scratch):
         ctx.state[5] = max(MIN_NEAR, int(MAX_NEAR * scale))
         ctx.state[6] = ctx.state[5] * CONE_BOXES // MAX_NEAR
         for second in range(1 if ctx.state[3] == 1 else 2):
-            make_ray(rs.ray, r[0], r[1], r[2], r[3], r[4], r[5], r[RB_TMIN], r[RB_T0], r[RB_DT])
+            start_ray(rs.ray, r)
             rs.hit[H_TIN] = r[RB_TMAX]
             for k in range(COUNTER_LEN):
                 rs.counts[k] = 0
@@ -240,8 +248,9 @@ def _outputs(n: int) -> Outputs:
     return Outputs(**allocate(1, n))
 
 
-def batch_rays(origins, dirs, t_min=0.0, t_max=math.inf, t0=0.0, dt=0.0) -> np.ndarray:
-    """(N, RB_LEN) rays from origins and directions (N, 3) and scalars or (N,) arrays."""
+def batch_rays(origins, dirs, t_min=0.0, t_max=math.inf, t0=0.0, dt=0.0, side=None) -> np.ndarray:
+    """(N, RB_LEN) rays from origins and directions (N, 3) and scalars or (N,) arrays; side (N, 3):
+    the normals of the sides the rays leave their surfaces on (None: not known)."""
     n = len(origins)
     rays = np.empty((n, RB_LEN))
     rays[:, RB_O:RB_O + 3] = origins
@@ -250,4 +259,5 @@ def batch_rays(origins, dirs, t_min=0.0, t_max=math.inf, t0=0.0, dt=0.0) -> np.n
     rays[:, RB_TMAX] = t_max
     rays[:, RB_T0] = t0
     rays[:, RB_DT] = dt
+    rays[:, RB_SIDE:RB_SIDE + 3] = 0.0 if side is None else side
     return rays

@@ -24,8 +24,8 @@ import numpy as np
 
 from .bundle import MAX_RAYS, ONE, ZERO, bundle_rays, make_bundle_search, make_bvh_bundle_walk
 from .jit import njit, specialise
-from .ray import H_TIN, make_ray
-from .ray_batch import RB_DT, RB_T0, RB_TMAX, RB_TMIN
+from .ray import H_TIN
+from .ray_batch import RB_TMAX, start_ray
 from .records import C_EFFORT, COUNTER_LEN
 from .tile_kernel import working_slots
 from .variants import compiled
@@ -39,7 +39,7 @@ def _trace_point_bundles(rays, starts, scene, q, occluded, effort, sl, br):
         active = ZERO
         for j in range(starts[g + 1] - first):
             r = rays[first + j]
-            make_ray(br.rays[j], r[0], r[1], r[2], r[3], r[4], r[5], r[RB_TMIN], r[RB_T0], r[RB_DT])
+            start_ray(br.rays[j], r)
             br.hits[j, H_TIN] = r[RB_TMAX]
             for k in range(COUNTER_LEN):
                 br.counts[j, k] = 0

@@ -21,7 +21,7 @@ from .jit import njit
 
 from .bezier import (control_box, control_box_rational, restrict, restrict_err, split_u, split_u_cubic,
                      split_u_linear, split_v, split_v_cubic, split_v_linear)
-from .ray import R_D, R_N1, R_N2, R_O, slab
+from .ray import R_D, R_N1, R_N2, R_O, R_SIDE, slab
 from .records import PatchInfo
 from .simd import dist_range_cubic
 
@@ -269,9 +269,10 @@ def hull_range(buf, s, count, rational, cubic, n0, n1, n2):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def hull_off_plane(sl, s, pa, ray, n0, n1, n2):
-    """Is the convex hull of slot s's control points (widened by the error bounds) wholly on one
-    side of the plane through the ray with unit normal (n0, n1, n2), normal to the ray?"""
+def hull_across(sl, s, pa, ray, n0, n1, n2):
+    """(least, greatest, slack): the signed distances of slot s's control points from the plane
+    through the ray's origin with unit normal (n0, n1, n2), and what they may be off by (the
+    points' error bounds, the rounding of the distances)."""
     buf = sl.buf
     mf = sl.mf
     sub = mf[s, M_MAG] * pa.sub_scale
@@ -282,7 +283,30 @@ def hull_off_plane(sl, s, pa, ray, n0, n1, n2):
     lo, hi = hull_range(buf, s, pa.count, pa.rational, pa.cubic, n0, n1, n2)
     slack = ((mf[s, M_E] + sub) * abs(n0) + (mf[s, M_E + 1] + sub) * abs(n1) + (mf[s, M_E + 2] + sub) * abs(n2)
              + 2.0 ** -51 * (abs(rel0) + abs(rel1) + abs(rel2) + max(abs(lo), abs(hi))))
-    return offset + lo > slack or offset + hi < -slack
+    return offset + lo, offset + hi, slack
+
+
+@njit(cache=True, nogil=True, inline='always')
+def hull_off_plane(sl, s, pa, ray, n0, n1, n2):
+    """Is the convex hull of slot s's control points (widened by the error bounds) wholly on one
+    side of the plane through the ray with unit normal (n0, n1, n2), normal to the ray?"""
+    lo, hi, slack = hull_across(sl, s, pa, ray, n0, n1, n2)
+    return lo > slack or hi < -slack
+
+
+@njit(cache=True, nogil=True, inline='always')
+def hull_behind(sl, s, pa, ray):
+    """Is slot s's hull (widened by the error bounds) wholly behind the ray's side plane
+    (ray.set_side), which the ray never goes behind? Then no part of it can meet the ray. A
+    secondary ray's own surface is settled so near its origin, where the boxes still hold the
+    origin and only a descent to the rounding's scale would part them from the ray."""
+    n0 = ray[R_SIDE]
+    n1 = ray[R_SIDE + 1]
+    n2 = ray[R_SIDE + 2]
+    if n0 == 0.0 and n1 == 0.0 and n2 == 0.0:
+        return False
+    _, hi, slack = hull_across(sl, s, pa, ray, n0, n1, n2)
+    return hi < -slack
 
 
 @njit(cache=True, nogil=True, inline='always')
