@@ -29,7 +29,8 @@ from .ray import H_TIN, RAY_LEN, R_O, R_TMIN, slab_at
 from .records import C_BOX_TESTS, C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES
 from .search_steps import ADAPTIVE, halve, hull_accepts, judge_known, report, root_at, tighten, trim_accepts
 from .search_steps import trim_state
-from .subpatch import I_DEPTH, I_LAST, I_STALLED, M_DPAR, M_OX, M_TIN, M_TOUT, hull_behind, hull_hit, hull_off_plane, patch_info
+from .subpatch import (I_DEPTH, I_LAST, I_STALLED, M_DPAR, M_OX, M_TIN, M_TOUT, hull_behind, hull_hit, hull_off_plane,
+                       patch_info)
 from .subpatch import seam_plane
 from .surface_cache import S_DEPTH, S_FIRST, S_HITS, S_MISSES, copy_slot, take_pair, touch
 

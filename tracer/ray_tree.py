@@ -24,7 +24,7 @@ from .camera import View, primary_rays, view_of
 from .geometry import Geometry, prepare
 from .options import Options
 from .origins import box_corner
-from .ray_batch import RB_D, RB_DT, RB_LEN, RB_O, RB_T0, RB_TMAX, RB_TMIN
+from .ray_batch import RB_D, RB_DT, RB_LEN, RB_O, RB_SIDE, RB_T0, RB_TMAX, RB_TMIN
 from .render import bundle_shape, frame_lighting, kernel_inputs, trace_rays
 from .trace_one import PixelTrace, trace_pixel, trace_ray_steps
 
@@ -248,7 +248,8 @@ def trace_steps(tree: RayTree, scene, geom: Geometry, opts: Options, view: View,
             q = r.ray
             r.steps = trace_ray_steps(geom, secondary, q[RB_O:RB_O + 3], q[RB_D:RB_D + 3], angle, tree.pixel,
                                       t_min=q[RB_TMIN], t_max=q[RB_TMAX], t0=q[RB_T0], dt=q[RB_DT],
-                                      driver="any" if r.kind == "shadow" else "closest")
+                                      driver="any" if r.kind == "shadow" else "closest",
+                                      side=q[RB_SIDE:RB_SIDE + 3])
             if r.kind == "shadow" and r.steps.hit:  # the box that occluded it
                 r.box_min, r.box_max, r.patch, r.t = r.steps.box_min, r.steps.box_max, r.steps.patch, r.steps.t
                 r.position = r.steps.position

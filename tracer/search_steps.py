@@ -17,9 +17,9 @@ from .jit import njit
 
 from .ray import H_DEPTH, H_DU, H_DV, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, R_DT, R_O, R_T0, R_TMIN
 from .subpatch import (I_DEPTH, I_LAST, I_STALLED, I_STEP, I_TRIM, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN,
-                       M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, REFINE, RECENTRE, grid_l1, hull_behind, hull_hit, hull_off_plane,
-                       open_box, raw_box, recentre, refine, seam_plane, snap_down, snap_up, split, split_direction,
-                       ulp, widen, within_ulps)
+                       M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, REFINE, RECENTRE, grid_l1, hull_behind, hull_hit,
+                       hull_off_plane, open_box, raw_box, recentre, refine, seam_plane, snap_down, snap_up, split,
+                       split_direction, ulp, widen, within_ulps)
 from .trim_kernel import rect_meets_loops, trim_inside
 
 # Termination criteria (codes as in options.CRITERION_CODE).
@@ -67,7 +67,7 @@ def open_child(sl, s, pa, lv, ray, t_max, trace, tracing):
     """Test slot s's (widened) box against the ray; returns 1 if it stays a candidate."""
     alive, ok = open_box(sl, s, ray, t_max)
     if alive and sl.mf[s, M_TIN] <= ray[R_TMIN] and hull_behind(sl, s, pa, ray):  # a box holding the origin
-        alive = False
+        alive = ok = False  # the ray misses it
     if tracing:
         event = SPLIT if alive else (PRUNED if ok else MISS)  # SPLIT stands until it is popped
         sl.mi[s, I_STEP] = record(trace, sl, s, pa, lv, event)

@@ -14,7 +14,7 @@ from .camera import View, primary_rays, view_of
 from .fixed_order import dot
 from .geometry import Geometry, prepare
 from .options import Options
-from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN, make_ray
+from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, HIT_LEN, RAY_LEN, make_ray, set_side
 from .records import C_EFFORT, COUNTER_LEN, new_trace
 from .render import kernel_inputs
 from .tile_kernel import tile_scratch
@@ -85,12 +85,13 @@ class PixelTrace:
 
 def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angle: float,
                     pixel=(0, 0), capacity: int = TRACE_CAPACITY, *, t_min: float = 0.0, t_max: float = math.inf,
-                    t0: float = 0.0, dt: float | None = None, driver: str = "closest") -> PixelTrace:
+                    t0: float = 0.0, dt: float | None = None, driver: str = "closest", side=None) -> PixelTrace:
     """Trace one ray with step recording; same kernel and options as the renderer.
 
     A primary ray by default; a secondary ray (ray_batch's batch rays) gives its interval
     (t_min, t_max), its threshold of detail T0 + dT * t (dt None: the pixel angle's slope times
-    the direction's length) and its driver ('any' for shadow rays: the first hit box ends it)."""
+    the direction's length), its driver ('any' for shadow rays: the first hit box ends it) and the
+    side it leaves its surface on (ray.set_side; None: none)."""
     inputs = kernel_inputs(geom, opts, pixel_angle)
     slope, max_points = inputs.sizes[:2]
     lv = inputs.scene[0]
@@ -102,6 +103,8 @@ def trace_ray_steps(geom: Geometry, opts: Options, origin, direction, pixel_angl
     hit = np.zeros(HIT_LEN)
     counts = np.zeros(COUNTER_LEN, np.int64)
     make_ray(ray, o[0], o[1], o[2], d[0], d[1], d[2], t_min, t0, slope * length if dt is None else dt)
+    if side is not None:
+        set_side(ray, float(side[0]), float(side[1]), float(side[2]))
     hit[H_TIN] = t_max
     args = (ray, hit, inputs.scene, inputs.query, trace, counts, tile_scratch(inputs))
     compiled("ray", variant_for(geom, opts, trace=True, driver=driver), args)(*args)
