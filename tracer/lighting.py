@@ -279,7 +279,7 @@ class Lighting:
             o = origin[idx]
             n = normal[idx]
             # the cone's side plane: only where every ray of the cone leaves in front of it
-            clear = dot3(n, centre - o) > np.abs(n) @ half * (1.0 + 2.0 ** -30) + 2.0 ** -40 * (
+            clear = dot3(n, centre - o) > dot3(np.abs(n), half) * (1.0 + 2.0 ** -30) + 2.0 ** -40 * (
                 np.abs(n).sum(axis=1) * np.abs(centre - o).sum(axis=1))
             centre_rays = batch_rays(o, centre - o, 0.0, 1.0, side=np.where(clear[:, None], n, 0.0))
             cone = shares_tree(self.opts)  # one cone search stands for the samples' (ray_batch._penumbra_visit)
