@@ -1,7 +1,7 @@
 """Parallel rendering of primary rays into per-pixel channels.
 
-Work units (tiles, or runs of pixels in another order: pixel_order.py) run on a thread pool;
-the numba tile kernel releases the GIL, so threads trace in parallel. Each finished unit is
+Work units (tiles, or runs of pixels in another order: pixel_order.py) run on the calling thread
+and its helpers (unit_loop.py); the numba tile kernel releases the GIL, so threads trace in parallel. Each finished unit is
 reported to an optional callback (the viewer uploads it), and a cancel event stops the frame
 between units.
 """
@@ -12,7 +12,6 @@ import queue
 import threading
 import time
 import weakref
-from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,6 +24,7 @@ from .options import CRITERION_CODE, SPLIT_CODE, Options
 from .pixel_order import order_units, unit_count as order_unit_count
 from .records import Leaves, Query, Trims, no_trace
 from .tile_kernel import tile_scratch
+from .unit_loop import run_units
 from .variants import compiled, label, variant_for
 
 CONTRACT_NAMES = ("ray_origin", "ray_dir", "hit", "t", "position", "box_min", "box_max",
@@ -347,13 +347,7 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
 
     start = time.perf_counter()
     threads = thread_count(opts)
-    if threads == 1:  # in this thread: one worker would only add a hand-over per unit
-        for u in units:
-            finished(work(u))
-    else:
-        with ThreadPoolExecutor(max_workers=threads) as pool:
-            for fut in as_completed([pool.submit(work, u) for u in units]):
-                finished(fut.result())
+    run_units(units, work, finished, threads)
     frame.seconds = time.perf_counter() - start
     if lighting is not None:
         frame.extras["lighting"] = lighting.report()
