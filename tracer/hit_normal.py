@@ -23,6 +23,8 @@ def hit_normal(hit, ctrl, pstart, deg_u, deg_v, rational, ray, pts, scratch, wor
     v = hit[H_V]
     if m == 3 and n == 3 and rational[p] == 0:
         found = _bicubic_normal(ctrl, start, u, v, pts, scratch, work, out)
+    elif m == 1 and n == 1 and rational[p] == 0:
+        found = _bilinear_normal(ctrl, start, u, v, work, out)
     else:
         count = (m + 1) * (n + 1)
         for c in range(4):
@@ -55,4 +57,22 @@ def _bicubic_normal(ctrl, start, u, v, pts, scratch, work, out):
     _bernstein_row(two, v, scratch[3])
     for c in range(3):
         tangents(pts[c], three, three, scratch[0], scratch[1], scratch[2], scratch[3], c, work)
+    return normal_from(work, u, v, False, out)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _bilinear_normal(ctrl, start, u, v, work, out):
+    """normal_at for an integral bilinear leaf (floors, planes), bit for bit: evaluate's Bernstein
+    rows and tangents written out for degree 1, its sums in the same order from the same 0.0 (so
+    a zero keeps its sign), the products by 1.0 left out (they are exact)."""
+    bu0 = 0.0 + (1.0 - u)
+    bv0 = 0.0 + (1.0 - v)
+    for c in range(3):
+        a0 = np.float64(ctrl[c, start])
+        a1 = np.float64(ctrl[c, start + 1])
+        a2 = np.float64(ctrl[c, start + 2])
+        a3 = np.float64(ctrl[c, start + 3])
+        work[1, c] = 0.0 + bv0 * (a1 - a0) + v * (a3 - a2)
+        work[2, c] = 0.0 + bu0 * (a2 - a0) + u * (a3 - a1)
+        work[3, c] = 0.0 + (a3 - a2 - a1 + a0)
     return normal_from(work, u, v, False, out)
