@@ -73,7 +73,12 @@ def primary_rays(view: View, width: int, height: int, precision: str = "f32", re
     y0, y1, x0, x1 = rect if rect is not None else (0, height, 0, width)
     xs = ((np.arange(x0, x1) + 0.5) * 2.0 / width - 1.0) * half * width / height
     ys = (1.0 - (np.arange(y0, y1) + 0.5) * 2.0 / height) * half
-    dirs = forward + xs[None, :, None] * right + ys[:, None, None] * up
-    dirs = dirs.astype(dtype).astype(np.float64)
-    origins = np.broadcast_to(np.asarray(view.eye, float).astype(dtype).astype(np.float64), dirs.shape)
-    return np.ascontiguousarray(origins), np.ascontiguousarray(dirs)
+    # forward + x right + y up, added in that order, the last sum rounded straight into the working
+    # precision (a pass over the image fewer)
+    across = forward + xs[:, None] * right
+    dirs = np.empty((y1 - y0, x1 - x0, 3), dtype)
+    np.add(across[None, :, :], ys[:, None, None] * up, out=dirs, casting="same_kind")
+    dirs = dirs.astype(np.float64)
+    origins = np.empty_like(dirs)
+    origins[...] = np.asarray(view.eye, float).astype(dtype)
+    return origins, dirs
