@@ -11,7 +11,7 @@ from psrt.cli import main
 from tracer import bench_coherence as BC
 from tracer.bench_tables import TITLES, checks, format_checks
 
-TEAPOT_ROWS = 25 + 15 + 12  # bundles, accel, order
+TEAPOT_ROWS = 26 + 15 + 12  # bundles, accel, order
 
 
 def run(*argv):
@@ -32,7 +32,7 @@ def test_the_command_prints_three_tables_with_every_row(teapot_run):
     assert code == 0
     rows = result["scenes"]["teapot"]["rows"]
     assert len(rows) == TEAPOT_ROWS
-    assert [sum(r["table"] == t for r in rows) for t in BC.TABLES] == [25, 15, 12]
+    assert [sum(r["table"] == t for r in rows) for t in BC.TABLES] == [26, 15, 12]
     for title in TITLES.values():
         assert title in text
     for label in ("float 1x1", "adaptive 8x8 + cache + peano", "fixed 4x2", "no subdivision", "BVH",
@@ -110,3 +110,20 @@ def test_tables_chooses_the_tables_and_quiet_keeps_stderr_empty(capsys):
     assert captured.err == "" and TITLES["order"] in captured.out
     assert TITLES["bundles"] not in captured.out and TITLES["accel"] not in captured.out
     assert captured.out.count("peano, ") == 4 and "no subdivision" not in captured.out
+
+
+def test_the_frame_without_subdivision_is_judged_by_its_fastest_row_at_512():
+    def flat(seconds, size, scene="teapot"):
+        rows = [{"table": "bundles", "label": f"fixed 5 {b}: no subdivision", "times": [t], "time": t,
+                 "speedup": 2.0, "stats": {}} for b, t in zip(("1x1", "8x8"), seconds)]
+        return {"size": size, "scenes": {scene: {"rows": rows}}}
+
+    def verdict(result):
+        (what, figure, _, ok), = [c for c in checks(result) if "without subdivision" in c[0]]
+        return what, figure, ok
+
+    what, figure, ok = verdict(flat([0.09, 0.035], [512, 512]))
+    assert ok is True and "8x8" in what and figure.startswith("0.035 s")
+    assert verdict(flat([0.09, 0.05], [512, 512]))[2] is False
+    assert verdict(flat([0.01, 0.01], [64, 64]))[2] is None  # only the teapot at 512x512 is judged
+    assert verdict(flat([0.01, 0.01], [512, 512], "flying"))[2] is None

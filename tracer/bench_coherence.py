@@ -2,7 +2,7 @@
 
 - bundles (Dammertz 2005, table 2.5): ray bundles 1x1 to 8x8 under the float, adaptive and fixed
   criteria, and the largest bundle with the surface-tree cache and the Peano order added; and a
-  frame without subdivision (`fixed` with fixed_size as large as the scene's leaves).
+  frame without subdivision (`fixed` with fixed_size as large as the scene's leaves), 1x1 and 8x8.
 - accel (Dammertz, table 3.1): the BVH against kd-trees of depth 10, 20 and 30 (both split rules)
   and grids at three resolutions, with and without the mailbox; build time and memory.
 - order (Lischinski and Gonczarowski 1990, section 5): scanline, item-buffer and Peano order,
@@ -84,8 +84,9 @@ def _all_rows(geom, base: Options) -> list:
                  Row("bundles", f"{criterion} 8x8 + cache + peano", c.with_(bundle="8x8", cache=True, order="peano"),
                      c)]
     size = no_subdivision_size(geom)
-    rows.append(Row("bundles", f"fixed {size:.3g}: no subdivision", plain.with_(criterion="fixed", fixed_size=size),
-                    plain))
+    flat = plain.with_(criterion="fixed", fixed_size=size)
+    rows += [Row("bundles", f"fixed {size:.3g} {b}: no subdivision", flat.with_(bundle=b), plain)
+             for b in ("1x1", "8x8")]
     rows.append(Row("accel", "BVH", plain, plain))
     for split in ("sah", "middle"):
         for depth in KD_DEPTHS:

@@ -12,6 +12,10 @@ TITLES = {"bundles": "ray bundles (Dammertz table 2.5): speed-up against 1x1 of 
                    "speed-up against scanline without the cache"}
 
 
+# Issue 12: the cost of traversal, ray set-up and the tile loop, a frame of the teapot at 512x512.
+FLAT_FRAME_SECONDS = 0.04
+
+
 def _f(x, spec=".2f") -> str:
     return "-" if x is None else format(x, spec)
 
@@ -107,6 +111,7 @@ def checks(result: dict) -> list:
     """Issue 12's targets as measured: (what, figure, target, met: bool, or None where the target is
     about another scene or only asks for the figure)."""
     out = []
+    full_size = result["size"] == [512, 512]
     for label, scene in result["scenes"].items():
         for criterion, target in (("adaptive", 1.5), ("float", 1.2)):
             best = _best(scene, criterion)
@@ -129,11 +134,13 @@ def checks(result: dict) -> list:
                             f"{_f(a, '.4f')} / {_f(b, '.4f')} (trees re-made {_f(_remade(peano), 'd')} / "
                             f"{_f(_remade(scan), 'd')})", "peano >= scanline on every scene",
                             None if a is None or b is None else a >= b))
-        flat = _row(scene, "fixed ", "no subdivision")
+        flat = [r for r in scene["rows"] if r["label"].endswith("no subdivision")]
         if flat:
-            out.append((f"{label}: a frame without subdivision ({flat['label']})",
-                        f"{flat['time']:.3f} s, {100 / flat['speedup']:.0f} % of the float 1x1 frame",
-                        "report it (the teapot at 512x512)", None))
+            best = min(flat, key=lambda r: r["time"])
+            out.append((f"{label}: a frame without subdivision ({best['label']})",
+                        f"{best['time']:.3f} s, {100 / best['speedup']:.0f} % of the float 1x1 frame",
+                        f"<= {FLAT_FRAME_SECONDS} s on the teapot at 512x512",
+                        best["time"] <= FLAT_FRAME_SECONDS if label == "teapot" and full_size else None))
     return out
 
 
