@@ -61,6 +61,17 @@ COUNTERS = tuple(c for c in KERNEL_CHANNELS if c.counter)
 Outputs = namedtuple("Outputs", CHANNEL_NAMES)
 
 
-def allocate(height: int, width: int) -> dict:
-    """Every kernel channel for an image, filled with its miss value."""
+def allocate(height: int, width: int, filled: bool = True) -> dict:
+    """Every kernel channel for an image, filled with its miss value; unfilled (filled=False) where
+    the tile kernel will write every pixel before anybody reads one (it writes every channel of
+    each pixel it traces, hit or miss)."""
+    if not filled:
+        return {c.name: np.empty((height, width) + c.tail, c.dtype) for c in KERNEL_CHANNELS}
     return {c.name: np.full((height, width) + c.tail, c.miss, c.dtype) for c in KERNEL_CHANNELS}
+
+
+def fill_miss(channels, rows, columns) -> None:
+    """Give pixels (rows[i], columns[i]) of every kernel channel (an object with one attribute per
+    channel, as Frame or Outputs) its miss value: pixels never traced."""
+    for c in KERNEL_CHANNELS:
+        getattr(channels, c.name)[rows, columns] = c.miss

@@ -19,13 +19,13 @@ import numpy as np
 from .camera import View, primary_rays, view_of
 from .accel import aggregate_for
 from .geometry import Geometry, prepare
-from .kernel_channels import CHANNEL_NAMES, Outputs, allocate
+from .kernel_channels import CHANNEL_NAMES, Outputs, allocate, fill_miss
 from .options import CRITERION_CODE, SPLIT_CODE, Options
 from .pixel_order import order_units, unit_count as order_unit_count
 from .records import Leaves, Query, Trims, no_trace
 from .tile_kernel import tile_scratch
 from .unit_loop import run_units
-from .variants import compiled, label, variant_for
+from .variants import bound, compiled, label, variant_for
 
 CONTRACT_NAMES = ("ray_origin", "ray_dir", "hit", "t", "position", "box_min", "box_max",
                   "normal", "uv", "patch", "effort")
@@ -71,9 +71,10 @@ class Frame:
     extras: dict = field(default_factory=dict)
 
     @classmethod
-    def empty(cls, origins: np.ndarray, dirs: np.ndarray) -> "Frame":
+    def empty(cls, origins: np.ndarray, dirs: np.ndarray, filled: bool = True) -> "Frame":
+        """The frame of these rays, its channels at their miss values (filled) or not yet written."""
         h, w = origins.shape[:2]
-        return cls(origins, dirs, **allocate(h, w))
+        return cls(origins, dirs, **allocate(h, w, filled))
 
     @property
     def size(self):
@@ -142,6 +143,13 @@ def work_units(width: int, height: int, opts: Options, geometry: Geometry | None
     (tracer/pixel_order.py); the item buffer projects the geometry's patch boxes through the view."""
     boxes = geometry.patch_box if geometry is not None and opts.order == "itembuffer" else None
     return [Unit(*u) for u in order_units(width, height, opts.order, opts.tile_size, bundle_shape(opts), boxes, view)]
+
+
+def _plain_pixels(unit: Unit) -> bool:
+    """Whether a unit's arrays have the one type its kernel's bound entry point takes (int32,
+    C-contiguous, as rect_blocks and pixel_order make them)."""
+    p, b = unit.pixels, unit.blocks
+    return p.dtype == np.int32 and b.dtype == np.int32 and p.flags.c_contiguous and b.flags.c_contiguous
 
 
 def unit_count(width: int, height: int, opts: Options) -> int:
@@ -282,7 +290,10 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     scene: the loaded scene of geom, to shade each unit with its secondary rays as it finishes
     (lighting.py: the radiance, shadow, shadow_rays and penumbra channels); None: primary rays only.
     """
-    frame = Frame.empty(origins, dirs)
+    # Nobody sees the frame before it is returned unless on_tile shows it as it is traced: only then
+    # must untraced pixels read as misses from the start (the kernel writes each traced pixel whole;
+    # pixels a cancel leaves untraced are given their miss values at the end).
+    frame = Frame.empty(origins, dirs, filled=on_tile is not None)
     h, w = frame.hit.shape
     units = work_units(w, h, opts, geom, view)
     if order is not None:
@@ -323,12 +334,20 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
             mine[id(cache)] = tile_scratch(inputs, cache)
         return mine[id(cache)]
 
+    callers = {}  # id(scratch) -> the kernel's entry point for its argument types (variants.bound)
+
     def work(unit):
         if cancel is not None and cancel.is_set():
             return None
         cache = lent.get() if caches else None
         try:
-            kernel(unit.pixels, unit.blocks, origins, dirs, *args, scratch_for(cache))
+            scratch = scratch_for(cache)
+            call = callers.get(id(scratch)) if _plain_pixels(unit) else kernel
+            if call is None:  # the first unit of this scratch: through the dispatcher, which types it
+                kernel(unit.pixels, unit.blocks, origins, dirs, *args, scratch)
+                callers[id(scratch)] = bound(kernel, (unit.pixels, unit.blocks, origins, dirs) + args + (scratch,))
+            else:
+                call(unit.pixels, unit.blocks, origins, dirs, *args, scratch)
         finally:
             if cache is not None:
                 lent.put(cache)
@@ -336,9 +355,12 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
             lighting.shade_unit(frame, unit.pixels)
         return unit
 
+    traced = set()
+
     def finished(unit):
         if unit is None:
             return
+        traced.add(id(unit))
         frame.tiles_done += 1
         if progress is not None:
             progress(1)
@@ -349,6 +371,9 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     threads = thread_count(opts)
     run_units(units, work, finished, threads)
     frame.seconds = time.perf_counter() - start
+    for unit in units:
+        if id(unit) not in traced:
+            fill_miss(frame, unit.pixels[:, 0], unit.pixels[:, 1])
     if lighting is not None:
         frame.extras["lighting"] = lighting.report()
     if caches:

@@ -1,0 +1,80 @@
+"""A frame nobody watches is allocated unwritten (trace_rays): the tile kernel writes every channel
+of each pixel it traces, and pixels a cancel leaves untraced get their miss values at the end. Here
+the unwritten channels start as poison, and must come out byte for byte as the frame filled first
+(the one on_tile shows while it is traced); the tile kernel is also called through its bound entry
+point (variants.bound), and must give the dispatcher's bytes."""
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+import tracer.render as render_module
+from tracer.kernel_channels import KERNEL_CHANNELS
+from tracer.options import Options
+from tracer.render import render, work_units
+from viewer_util import teapot  # noqa: F401
+
+SIZE = (40, 29)
+
+
+def poisoned(height, width, filled=True):
+    """kernel_channels.allocate, with every unfilled channel holding a value no pixel can have."""
+    channels = ORIGINAL_ALLOCATE(height, width, filled)
+    if not filled:
+        for c in KERNEL_CHANNELS:
+            a = channels[c.name]
+            a[...] = True if a.dtype == bool else (-12345 if a.dtype.kind == "i" else 7.25e30)
+    return channels
+
+
+ORIGINAL_ALLOCATE = render_module.allocate
+
+
+@pytest.fixture
+def poison(monkeypatch):
+    monkeypatch.setattr(render_module, "allocate", poisoned)
+
+
+def channels(frame) -> dict:
+    return {c.name: getattr(frame, c.name) for c in KERNEL_CHANNELS}
+
+
+@pytest.mark.parametrize("order", ("scanline", "peano", "itembuffer"))
+@pytest.mark.parametrize("bundle", ("1x1", "8x8"))
+@pytest.mark.parametrize("threads", (1, 2))
+def test_an_unwatched_frame_is_the_watched_one(teapot, poison, order, bundle, threads):  # noqa: F811
+    opts = Options().with_(order=order, bundle=bundle, threads=threads, tile_size=16, criterion="adaptive")
+    watched = render(teapot, opts, size=SIZE, lighting=False, on_tile=lambda frame, unit: None)
+    unwatched = render(teapot, opts, size=SIZE, lighting=False)
+    assert watched.hit.any() and not watched.hit.all()
+    for name, a in channels(watched).items():
+        if threads == 2 and name in ("cache_hits", "cache_misses"):
+            continue  # which thread's cache serves a unit is not fixed
+        b = getattr(unwatched, name)
+        assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), name
+
+
+def test_pixels_a_cancel_leaves_untraced_read_as_misses(teapot, poison):  # noqa: F811
+    opts = Options().with_(tile_size=8, threads=1)
+    whole = render(teapot, opts, size=SIZE, lighting=False)
+    cancel = threading.Event()
+    done = []
+
+    def progress(n):
+        done.append(n)
+        if len(done) == 8:
+            cancel.set()
+
+    part = render(teapot, opts, size=SIZE, lighting=False, cancel=cancel, progress=progress)
+    assert part.tiles_done == 8 < part.tiles_total
+    traced = np.zeros(part.hit.shape, bool)
+    for unit in work_units(*SIZE, opts)[:8]:  # one thread: the first eight units, in order
+        traced[unit.pixels[:, 0], unit.pixels[:, 1]] = True
+    assert part.hit[traced].any() and whole.hit[~traced].any()
+    for c in KERNEL_CHANNELS:
+        mine, full = getattr(part, c.name), getattr(whole, c.name)
+        assert np.array_equal(mine[traced], full[traced], equal_nan=mine.dtype.kind == "f"), c.name
+        miss = np.full(mine[~traced].shape, c.miss, mine.dtype)
+        assert np.array_equal(mine[~traced], miss, equal_nan=mine.dtype.kind == "f"), c.name
