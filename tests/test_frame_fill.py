@@ -1,4 +1,4 @@
-"""A frame nobody watches is allocated unwritten (trace_rays): the tile kernel writes every channel
+"""A frame nobody watches is allocated unwritten and traced in groups of units (trace_rays): the tile kernel writes every channel
 of each pixel it traces, and pixels a cancel leaves untraced get their miss values at the end. Here
 the unwritten channels start as poison, and must come out byte for byte as the frame filled first
 (the one on_tile shows while it is traced); the tile kernel is also called through its bound entry
@@ -78,3 +78,13 @@ def test_pixels_a_cancel_leaves_untraced_read_as_misses(teapot, poison):  # noqa
         assert np.array_equal(mine[traced], full[traced], equal_nan=mine.dtype.kind == "f"), c.name
         miss = np.full(mine[~traced].shape, c.miss, mine.dtype)
         assert np.array_equal(mine[~traced], miss, equal_nan=mine.dtype.kind == "f"), c.name
+
+
+def test_a_lit_frame_unwatched_is_the_watched_one(teapot, poison):  # noqa: F811
+    """Grouped units (unit_loop.guided_groups) are shaded unit by unit, as when watched."""
+    opts = Options().with_(threads=2, tile_size=8, light_samples=6)
+    watched = render(teapot, opts, size=SIZE, on_tile=lambda frame, unit: None)
+    unwatched = render(teapot, opts, size=SIZE)
+    for name in ("hit", "t", "normal", "patch", "radiance", "shadow", "shadow_rays", "penumbra"):
+        a, b = getattr(watched, name), getattr(unwatched, name)
+        assert a is not None and a.tobytes() == b.tobytes(), name

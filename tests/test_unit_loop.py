@@ -5,7 +5,9 @@ import time
 
 import pytest
 
-from tracer.unit_loop import run_units
+import numpy as np
+
+from tracer.unit_loop import guided_groups, joined_pixels, run_units
 
 
 @pytest.mark.parametrize("threads", [1, 2, 4])
@@ -75,3 +77,29 @@ def test_an_exception_in_finished_stops_the_helpers():
     count = len(started)
     time.sleep(0.02)
     assert len(started) == count < 1000  # the helper stopped too
+
+
+@pytest.mark.parametrize("threads", (1, 2, 3))
+@pytest.mark.parametrize("count", (0, 1, 5, 256, 1000))
+def test_guided_groups_cover_the_units_in_order_and_shrink(threads, count):
+    units = list(range(count))
+    groups = list(guided_groups(units, threads, watched=False))
+    assert [u for g in groups for u in g] == units
+    sizes = [len(g) for g in groups]
+    assert all(a >= b for a, b in zip(sizes, sizes[1:]))  # large first, small at the end
+    assert not sizes or sizes[-1] == 1
+    if count >= 256:
+        assert len(groups) < count // 8  # few hand-overs
+    assert [len(g) for g in guided_groups(units, threads, watched=True)] == [1] * count
+
+
+def test_joined_pixels_are_the_units_in_sequence():
+    from tracer.render import Unit, rect_blocks
+    units = [Unit(*rect_blocks(r, 2, 2), r) for r in ((0, 3, 0, 5), (0, 4, 5, 8), (3, 4, 0, 1))]
+    pixels, blocks = joined_pixels(units)
+    assert pixels.dtype == blocks.dtype == np.int32 and pixels.flags.c_contiguous
+    expected = [u.pixels[a:b] for u in units for a, b in zip(u.blocks[:-1], u.blocks[1:])]
+    assert len(blocks) == len(expected) + 1
+    for (a, b), want in zip(zip(blocks[:-1], blocks[1:]), expected):
+        assert np.array_equal(pixels[a:b], want)
+    assert joined_pixels(units[:1])[0] is units[0].pixels

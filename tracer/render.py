@@ -24,7 +24,7 @@ from .options import CRITERION_CODE, SPLIT_CODE, Options
 from .pixel_order import order_units, unit_count as order_unit_count
 from .records import Leaves, Query, Trims, no_trace
 from .tile_kernel import tile_scratch
-from .unit_loop import run_units
+from .unit_loop import guided_groups, joined_pixels, run_units
 from .variants import bound, compiled, label, variant_for
 
 CONTRACT_NAMES = ("ray_origin", "ray_dir", "hit", "t", "position", "box_min", "box_max",
@@ -145,10 +145,9 @@ def work_units(width: int, height: int, opts: Options, geometry: Geometry | None
     return [Unit(*u) for u in order_units(width, height, opts.order, opts.tile_size, bundle_shape(opts), boxes, view)]
 
 
-def _plain_pixels(unit: Unit) -> bool:
-    """Whether a unit's arrays have the one type its kernel's bound entry point takes (int32,
-    C-contiguous, as rect_blocks and pixel_order make them)."""
-    p, b = unit.pixels, unit.blocks
+def _plain(p: np.ndarray, b: np.ndarray) -> bool:
+    """Whether a unit's pixels and blocks have the one type its kernel's bound entry point takes
+    (int32, C-contiguous, as rect_blocks, pixel_order and unit_loop.joined_pixels make them)."""
     return p.dtype == np.int32 and b.dtype == np.int32 and p.flags.c_contiguous and b.flags.c_contiguous
 
 
@@ -336,40 +335,42 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
 
     callers = {}  # id(scratch) -> the kernel's entry point for its argument types (variants.bound)
 
-    def work(unit):
+    def work(group):
         if cancel is not None and cancel.is_set():
             return None
+        pixels, blocks = joined_pixels(group)
         cache = lent.get() if caches else None
         try:
             scratch = scratch_for(cache)
-            call = callers.get(id(scratch)) if _plain_pixels(unit) else kernel
-            if call is None:  # the first unit of this scratch: through the dispatcher, which types it
-                kernel(unit.pixels, unit.blocks, origins, dirs, *args, scratch)
-                callers[id(scratch)] = bound(kernel, (unit.pixels, unit.blocks, origins, dirs) + args + (scratch,))
+            call = callers.get(id(scratch)) if _plain(pixels, blocks) else kernel
+            if call is None:  # the first call with this scratch: through the dispatcher, which types it
+                kernel(pixels, blocks, origins, dirs, *args, scratch)
+                callers[id(scratch)] = bound(kernel, (pixels, blocks, origins, dirs) + args + (scratch,))
             else:
-                call(unit.pixels, unit.blocks, origins, dirs, *args, scratch)
+                call(pixels, blocks, origins, dirs, *args, scratch)
         finally:
             if cache is not None:
                 lent.put(cache)
         if lighting is not None:
-            lighting.shade_unit(frame, unit.pixels)
-        return unit
+            for unit in group:
+                lighting.shade_unit(frame, unit.pixels)
+        return group
 
     traced = set()
 
-    def finished(unit):
-        if unit is None:
-            return
-        traced.add(id(unit))
-        frame.tiles_done += 1
-        if progress is not None:
-            progress(1)
-        if on_tile is not None:
-            on_tile(frame, unit)
+    def finished(group):
+        for unit in group or ():
+            traced.add(id(unit))
+            frame.tiles_done += 1
+            if progress is not None:
+                progress(1)
+            if on_tile is not None:
+                on_tile(frame, unit)
 
     start = time.perf_counter()
     threads = thread_count(opts)
-    run_units(units, work, finished, threads)
+    run_units(guided_groups(units, threads, watched=on_tile is not None or progress is not None),
+              work, finished, threads)
     frame.seconds = time.perf_counter() - start
     for unit in units:
         if id(unit) not in traced:
