@@ -31,7 +31,7 @@ from .bvh import build_bvh
 from .camera import primary_rays, view_of
 from .geometry import prepare
 from .options import BUNDLES, ORDERS, Options
-from .render import fresh_caches, trace_rays
+from .render import fresh_caches, thread_count, trace_rays
 from .stats import frame_stats
 from .surface_cache import mib_for_every_tree
 
@@ -141,7 +141,7 @@ def run_scene(scene, base: Options, *, size, runs: int, tables=TABLES, log=None,
             fresh_caches(geom, opts)  # empty, allocated and mapped before the clock starts
         t0 = clock()
         # primary rays alone, as render() traces them (without any shading's secondary rays)
-        origins, dirs = primary_rays(view, size[0], size[1], opts.precision)
+        origins, dirs = primary_rays(view, size[0], size[1], opts.precision, threads=thread_count(opts))
         f = trace_rays(geom, opts, origins, dirs, view.pixel_angle(size[1]), view=view, on_compile=on_compile)
         return clock() - t0, f
 

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,26 +60,53 @@ def framing_view(lo, hi, fov_deg: float = 35.0, direction=(0.55, -0.8, 0.45), up
     return View(tuple(eye), tuple(centre), tuple(up), fov_deg)
 
 
-def primary_rays(view: View, width: int, height: int, precision: str = "f32", rect=None):
+def primary_rays(view: View, width: int, height: int, precision: str = "f32", rect=None, threads: int = 1):
     """Origins and directions (height, width, 3) through pixel centres, row 0 at the top.
 
     Computed in float64, rounded to the working precision and widened again, so the
     arrays hold exactly the rays the kernel traces. Directions are not unit length.
     rect: (y0, y1, x0, x1) for only those pixels' rays, (y1 - y0, x1 - x0, 3), bit for bit
     the whole image's (one pixel's trace need not hold a whole image of rays).
+    threads: bands of rows made at once (numpy lets go of the interpreter while it fills them),
+    for an image large enough to repay a thread.
     """
-    dtype = PRECISION_DTYPE[precision]
+    y0, y1, x0, x1 = rect if rect is not None else (0, height, 0, width)
+    origins = np.empty((y1 - y0, x1 - x0, 3))
+    dirs = np.empty_like(origins)
+    bands = max(1, min(threads, origins.size // _BAND_VALUES))
+    cuts = [y0 + (y1 - y0) * k // bands for k in range(bands + 1)]
+    jobs = [(a, b) for a, b in zip(cuts, cuts[1:]) if b > a]
+
+    def band(a, b):
+        _rays_into(view, width, height, PRECISION_DTYPE[precision], (a, b, x0, x1),
+                   origins[a - y0:b - y0], dirs[a - y0:b - y0])
+
+    helpers = [threading.Thread(target=band, args=job) for job in jobs[1:]]
+    for t in helpers:
+        t.start()
+    try:
+        if jobs:
+            band(*jobs[0])
+    finally:
+        for t in helpers:
+            t.join()
+    return origins, dirs
+
+
+_BAND_VALUES = 3 * 128 * 128  # an image smaller than two such bands is made on the calling thread
+
+
+def _rays_into(view: View, width: int, height: int, dtype, rect, origins, dirs) -> None:
+    """primary_rays' rays of the pixels in rect, written into origins and dirs (float64 views)."""
     forward, right, up = view.basis()
     half = math.tan(math.radians(view.fov_deg) / 2.0)
-    y0, y1, x0, x1 = rect if rect is not None else (0, height, 0, width)
+    y0, y1, x0, x1 = rect
     xs = ((np.arange(x0, x1) + 0.5) * 2.0 / width - 1.0) * half * width / height
     ys = (1.0 - (np.arange(y0, y1) + 0.5) * 2.0 / height) * half
     # forward + x right + y up, added in that order, the last sum rounded straight into the working
-    # precision (a pass over the image fewer)
+    # precision, then widened into place
     across = forward + xs[:, None] * right
-    dirs = np.empty((y1 - y0, x1 - x0, 3), dtype)
-    np.add(across[None, :, :], ys[:, None, None] * up, out=dirs, casting="same_kind")
-    dirs = dirs.astype(np.float64)
-    origins = np.empty_like(dirs)
+    rounded = np.empty(dirs.shape, dtype)
+    np.add(across[None, :, :], ys[:, None, None] * up, out=rounded, casting="same_kind")
+    dirs[...] = rounded
     origins[...] = np.asarray(view.eye, float).astype(dtype)
-    return origins, dirs

@@ -395,7 +395,7 @@ def render(scene, opts: Options = Options(), *, size=None, view: View | None = N
     geom = geometry if geometry is not None else prepare(scene, opts.precision)
     if geom.precision != opts.precision:
         raise ValueError(f"geometry is {geom.precision}, options ask for {opts.precision}")
-    origins, dirs = primary_rays(view, width, height, opts.precision)
+    origins, dirs = primary_rays(view, width, height, opts.precision, threads=thread_count(opts))
     return trace_rays(geom, opts, origins, dirs, view.pixel_angle(height), view=view,
                       scene=scene if lighting else None, **kwargs)
 

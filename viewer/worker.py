@@ -29,7 +29,7 @@ from tracer.camera import View, primary_rays
 from tracer.geometry import prepare
 from tracer.options import Options, option_fields
 from tracer.pixel_order import fills_rect
-from tracer.render import reference_frame, trace_rays, work_units
+from tracer.render import reference_frame, thread_count, trace_rays, work_units
 from tracer.shade import shade
 
 COARSE = 8
@@ -260,7 +260,7 @@ class RenderWorker:
 
         # Full resolution in the order's sequence; untraced pixels keep the preview's colours.
         colour = upscale(rgb, COARSE, job.size).astype(np.float32)
-        origins, dirs = primary_rays(view, width, height, opts.precision)
+        origins, dirs = primary_rays(view, width, height, opts.precision, threads=thread_count(opts))
         traced, shaded = np.zeros((height, width), bool), [mode]
 
         def on_tile(frame, unit):
