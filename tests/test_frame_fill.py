@@ -88,3 +88,22 @@ def test_a_lit_frame_unwatched_is_the_watched_one(teapot, poison):  # noqa: F811
     for name in ("hit", "t", "normal", "patch", "radiance", "shadow", "shadow_rays", "penumbra"):
         a, b = getattr(watched, name), getattr(unwatched, name)
         assert a is not None and a.tobytes() == b.tobytes(), name
+
+
+def test_bound_is_the_compiled_entry_point_of_exactly_those_types():
+    import numba
+
+    from tracer.variants import bound
+
+    @numba.njit
+    def total(a, b):
+        return a.sum() * b
+
+    ints, scale = np.arange(6, dtype=np.int32), 2.5
+    total(ints, scale)  # compiled for (int32[::1], float64)
+    fast = bound(total, (ints, scale))
+    assert fast is not total and fast(ints, scale) == total(ints, scale) == 37.5
+    assert bound(total, (ints.astype(np.int64), scale)) is total  # no overload of these types
+    assert bound(total, (ints[::2], scale)) is total  # another layout is another type
+    plain = total.py_func
+    assert bound(plain, (ints, scale)) is plain  # not a dispatcher

@@ -147,8 +147,9 @@ def work_units(width: int, height: int, opts: Options, geometry: Geometry | None
 
 def _plain(p: np.ndarray, b: np.ndarray) -> bool:
     """Whether a unit's pixels and blocks have the one type its kernel's bound entry point takes
-    (int32, C-contiguous, as rect_blocks, pixel_order and unit_loop.joined_pixels make them)."""
-    return p.dtype == np.int32 and b.dtype == np.int32 and p.flags.c_contiguous and b.flags.c_contiguous
+    (int32, C-contiguous, aligned and writeable, as rect_blocks, pixel_order and
+    unit_loop.joined_pixels make them)."""
+    return p.dtype == np.int32 and b.dtype == np.int32 and p.flags.carray and b.flags.carray
 
 
 def unit_count(width: int, height: int, opts: Options) -> int:
