@@ -22,3 +22,18 @@ def test_rays_in_bands_are_the_rays_in_one(precision, size, rect):
             assert a.tobytes() == b.tobytes()
     dirs = one[1].reshape(-1, 3)
     assert len(np.unique(dirs, axis=0)) == len(dirs)  # every pixel its own ray
+
+
+def test_a_band_that_fails_fails_the_rays(monkeypatch):
+    import tracer.camera as camera
+    real = camera._rays_into
+
+    def fails_below_the_middle(view, width, height, dtype, rect, origins, dirs):
+        if rect[0] > 0:
+            raise MemoryError("no room for the lower band")
+        real(view, width, height, dtype, rect, origins, dirs)
+
+    monkeypatch.setattr(camera, "_rays_into", fails_below_the_middle)
+    with pytest.raises(MemoryError, match="lower band"):
+        primary_rays(VIEW, 512, 512, "f32", threads=2)
+    assert primary_rays(VIEW, 512, 512, "f32", threads=1)[1].shape == (512, 512, 3)  # one band: the top

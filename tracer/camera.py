@@ -77,9 +77,14 @@ def primary_rays(view: View, width: int, height: int, precision: str = "f32", re
     cuts = [y0 + (y1 - y0) * k // bands for k in range(bands + 1)]
     jobs = [(a, b) for a, b in zip(cuts, cuts[1:]) if b > a]
 
+    failed = []  # a helper's exception, raised on the calling thread
+
     def band(a, b):
-        _rays_into(view, width, height, PRECISION_DTYPE[precision], (a, b, x0, x1),
-                   origins[a - y0:b - y0], dirs[a - y0:b - y0])
+        try:
+            _rays_into(view, width, height, PRECISION_DTYPE[precision], (a, b, x0, x1),
+                       origins[a - y0:b - y0], dirs[a - y0:b - y0])
+        except BaseException as exc:
+            failed.append(exc)
 
     helpers = [threading.Thread(target=band, args=job) for job in jobs[1:]]
     for t in helpers:
@@ -90,6 +95,8 @@ def primary_rays(view: View, width: int, height: int, precision: str = "f32", re
     finally:
         for t in helpers:
             t.join()
+    if failed:
+        raise failed[0]
     return origins, dirs
 
 
