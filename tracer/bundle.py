@@ -27,8 +27,8 @@ from .frustum import F_LEN, MIN_RAYS, at_least, bound_rays, misses_all
 from .jit import njit, specialise
 from .ray import H_TIN, RAY_LEN, R_O, R_TMIN, slab_at
 from .records import C_BOX_TESTS, C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES
-from .search_steps import ADAPTIVE, halve, hull_accepts, judge_known, report, root_at, tighten, trim_accepts
-from .search_steps import trim_state
+from .search_steps import ADAPTIVE, halve, hull_accepts, judge_known, near_and_far, report, root_at, tighten
+from .search_steps import trim_accepts, trim_state
 from .subpatch import (I_DEPTH, I_LAST, I_STALLED, M_DPAR, M_OX, M_TIN, M_TOUT, hull_behind, hull_hit, hull_off_plane,
                        patch_info)
 from .subpatch import seam_plane
@@ -162,6 +162,17 @@ def open_pair(sl, a, b, pa, br, row_a, row_b, m):
 
 
 @njit(cache=True, nogil=True, inline='always')
+def _alone(sl, s, pa, lr, hit):
+    """Slot s's box against one ray (its interval into the slot): does the ray meet it before its
+    closest hit, and not only behind its side plane? 1 or 0 (open_rays for a mask of one ray)"""
+    lo0, lo1, lo2, hi0, hi1, hi2 = _corners(sl, s)
+    ok, t_in, t_out = slab_at(lo0, lo1, lo2, hi0, hi1, hi2, lr)
+    sl.mf[s, M_TIN] = t_in
+    sl.mf[s, M_TOUT] = t_out
+    return 1 if ok and t_in < hit[H_TIN] and not (t_in <= lr[R_TMIN] and hull_behind(sl, s, pa, lr)) else 0
+
+
+@njit(cache=True, nogil=True, inline='always')
 def nearest(tin, row, m):
     """The smallest entry t into the box of `row` (tin[row, r]) over the rays of m."""
     t = np.inf
@@ -218,6 +229,54 @@ def push_halves(sl, a, b, sp, pa, br, go, direction):
     return sp + 1, b, -1
 
 
+def _solo_search(sl, a, pa, lv, trims, q, br, r, base, free, nfree):
+    """The rest of working slot a's subtree for ray r alone, the bundle's last ray in it: the
+    single ray's steps (drivers._search) on the bundle's stack above position `base`, without a
+    mask, a row of intervals or a loop over rays. a's interval is in its slot; it is live and
+    not trimmed away. The same boxes, tests and order as the bundle's steps for a mask of one ray
+    (push_halves: a tie in t puts a on top, as sort_halves makes it the near half). Returns the
+    free slots' count."""
+    lr = br.lrays[r]
+    hit = br.hits[r]
+    mf = sl.mf
+    stack = br.slot
+    stack[base] = a
+    top = base + 1
+    checked = True  # a passed the bundle's own prune and trim tests
+    while top > base:
+        top -= 1
+        a = stack[top]
+        if not checked:
+            if mf[a, M_TIN] >= hit[H_TIN] or (HAS_TRIMS and trim_state(sl, a, pa, trims) < 0):  # noqa: F821
+                free[nfree] = a
+                nfree += 1
+                continue
+        checked = False
+        stop, d_crit, shrank, _ = judge_known(sl, a, pa, lv, lr, q, -1.0)
+        if stop:
+            if hull_accepts(sl, a, pa, lr, q) and (not HAS_TRIMS or trim_accepts(sl, a, pa, trims)):  # noqa: F821
+                report(hit, sl, a, pa, lv)
+            free[nfree] = a
+            nfree += 1
+            continue
+        br.counts[r, C_EFFORT] += 2
+        tighten(sl, a, pa, lv)
+        nfree -= 1
+        b = free[nfree]
+        direction = halve(sl, a, b, pa, lr, q, d_crit, shrank, HAS_GENERAL)  # noqa: F821
+        alive_a = _alone(sl, a, pa, lr, hit)
+        alive_b = _alone(sl, b, pa, lr, hit)
+        far, near, alive_far, alive_near, _ = near_and_far(sl, a, b, pa, lr, direction, alive_a, alive_b)
+        for half, alive in ((far, alive_far), (near, alive_near)):  # the near half on top
+            if alive:
+                stack[top] = half
+                top += 1
+            else:
+                free[nfree] = half
+                nfree += 1
+    return nfree
+
+
 def _bundle_search(p, lv, trims, q, sl, br, active):
     """The bundle patch search template (specialised by make_bundle_search): the single ray's
     steps (drivers._search, _cached_search with CACHED) for the rays of a mask, on a stack of
@@ -268,6 +327,12 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
             if not cached:
                 free[nfree] = a
                 nfree += 1
+            continue
+        if not cached and (live & (live - ONE)) == ZERO:  # one ray left: on alone (_solo_search)
+            r = lowest_bit(live)
+            sl.mf[a, M_TIN] = br.tin[row, r]
+            sl.mf[a, M_TOUT] = br.tout[row, r]
+            nfree = solo(sl, a, pa, lv, trims, q, br, r, sp, free, nfree)  # noqa: F821
             continue
         go = ZERO
         first_ray = 0
@@ -360,14 +425,19 @@ def make_bundle_search(variant):
     from the thread's surface-tree cache if the variant has it."""
     flags = dict(HAS_TRIMS=variant.trims, CACHED=variant.cache)
     kernel = njit(cache=True, nogil=True, _nrt=False)
+
+    def solo(general):
+        return njit(cache=True, nogil=True, _nrt=False, inline='always')(
+            specialise(_solo_search, HAS_TRIMS=variant.trims, HAS_GENERAL=general))
     narrow = None
     if variant.cubic or variant.linear or variant.general:
         narrow = kernel(specialise(_bundle_search, WIDE=False, HAS_RATIONAL=False, HAS_CUBIC=variant.cubic,
-                                   HAS_LINEAR=variant.linear, HAS_GENERAL=variant.general, **flags))
+                                   HAS_LINEAR=variant.linear, HAS_GENERAL=variant.general,
+                                   solo=solo(variant.general), **flags))
     if not variant.rational:
         return narrow
     wide = kernel(specialise(_bundle_search, WIDE=True, HAS_RATIONAL=True, HAS_CUBIC=False, HAS_LINEAR=False,
-                             HAS_GENERAL=True, **flags))
+                             HAS_GENERAL=True, solo=solo(True), **flags))
     dispatch = _rational_only if narrow is None else _by_kind
     return njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(dispatch, wide=wide, narrow=narrow))
 

@@ -302,31 +302,40 @@ def halve(sl, a, b, pa, ray, q, d_crit, shrank, has_general):
 def sort_halves(sl, a, b, pa, lv, ray, t_max, direction, trace, tracing):
     """Test the halves a and b (b the one past the seam) against the ray: (far, near, alive_far,
     alive_near), the far half to be pushed below the near one; only live halves count."""
-    mf = sl.mf
     alive_a = open_child(sl, a, pa, lv, ray, t_max, trace, tracing)
     alive_b = open_child(sl, b, pa, lv, ray, t_max, trace, tracing)
+    far, near, alive_far, alive_near, dropped = near_and_far(sl, a, b, pa, ray, direction, alive_a, alive_b)
+    if tracing and dropped >= 0:
+        set_event(trace, sl, dropped, MISS)
+    return far, near, alive_far, alive_near
+
+
+@njit(cache=True, nogil=True, inline='always')
+def near_and_far(sl, a, b, pa, ray, direction, alive_a, alive_b):
+    """The halves a and b (b past the seam), whose boxes the ray met (alive_a, alive_b: 1 or 0),
+    as (far, near, alive_far, alive_near, the half the hull tests dropped or -1); a is the near
+    one where both are entered at the same t."""
+    mf = sl.mf
     # Selects, not branches: which half survives is as good as random.
     near_a = mf[a, M_TIN] <= mf[b, M_TIN]
     far = b if near_a else a
     near = a if near_a else b
     alive_far = alive_b if near_a else alive_a
     alive_near = alive_a if near_a else alive_b
+    dropped = -1
     if alive_far and alive_near:
         # The ray meets both boxes: the control hulls (across two planes through the ray)
         # are much thinner than the boxes, and one of them usually misses (a side branch saved).
         # The plane along the new seam separates first (the half the ray does not cross is on
         # its far side); the planes of the ray's own frame catch the rest.
         w0, w1, w2 = seam_plane(sl, b, pa, direction, ray)
-        dropped = -1
         if hull_off_plane(sl, far, pa, ray, w0, w1, w2) or not hull_hit(sl, far, pa, ray):
             alive_far = 0
             dropped = far
         elif hull_off_plane(sl, near, pa, ray, w0, w1, w2) or not hull_hit(sl, near, pa, ray):
             alive_near = 0
             dropped = near
-        if tracing and dropped >= 0:
-            set_event(trace, sl, dropped, MISS)
-    return far, near, alive_far, alive_near
+    return far, near, alive_far, alive_near, dropped
 
 
 @njit(cache=True, nogil=True, inline='always')
