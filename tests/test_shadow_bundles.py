@@ -4,6 +4,7 @@ import pytest
 
 from tracer.bundle import MAX_RAYS
 from tracer.geometry import prepare
+from tracer.kernel_channels import COUNTERS
 from tracer.options import Options
 from tracer.ray_batch import BatchTracer, batch_rays
 from tracer.render import kernel_inputs, render
@@ -61,3 +62,36 @@ def test_bundled_shadow_rays_answer_as_single_rays(name, criterion, precision):
     # a ray that finds nothing computes the same boxes in the bundle (an occluded one looks on for
     # nearer hit boxes: the bundle's search is the closest hit's)
     np.testing.assert_array_equal(effort[~alone], effort_alone[~alone])
+
+
+def _mirror_rays(scene, geom, opts):
+    """Rays from a frame's hit points, lifted off the surface, mirrored about the normal, as the
+    lighting spawns reflected rays from neighbouring pixels (batch order: the pixels' order)."""
+    frame = render(scene, opts.with_(shadows=False, reflections=False), size=(40, 40), geometry=geom)
+    hit = frame.hit
+    pos = frame.position[hit].astype(np.float64)
+    normal = frame.normal[hit].astype(np.float64)
+    d = frame.ray_dir[hit].astype(np.float64)
+    side = np.where(np.sum(normal * d, axis=1, keepdims=True) > 0, -1.0, 1.0) * normal
+    mirrored = d - 2.0 * np.sum(d * side, axis=1, keepdims=True) * side
+    return batch_rays(pos + 1e-4 * side, mirrored, 0.0, np.inf, side=side)
+
+
+@pytest.mark.parametrize("name", ["teapot", "tea_set"])
+@pytest.mark.parametrize("criterion,precision", [("float", "f32"), ("float", "f64"), ("mantissa", "f32")])
+def test_bundled_reflected_rays_report_the_single_rays_channels(name, criterion, precision):
+    scene = load_scene(S.SAMPLES / f"{name}.json")
+    opts = Options(criterion=criterion, precision=precision)
+    geom = prepare(scene, precision)
+    rays = _mirror_rays(scene, geom, opts)
+    tracer = BatchTracer(geom, opts, kernel_inputs(geom, opts, 0.0))
+    alone = tracer.closest(rays)
+    bundled = PointBundles(tracer).closest(rays)
+    assert 0.05 < alone.hit.mean() < 0.95 and len(rays) > 3 * MAX_RAYS  # hits, misses, several bundles
+    miss = ~alone.hit[0]
+    for name_ in alone._fields:
+        if name_ in [c.name for c in COUNTERS]:  # a hit prunes what its ray visits later: the bundle's order
+            np.testing.assert_array_equal(getattr(bundled, name_)[0, miss], getattr(alone, name_)[0, miss],
+                                          err_msg=name_)
+        else:
+            np.testing.assert_array_equal(getattr(bundled, name_), getattr(alone, name_), err_msg=name_)

@@ -4,7 +4,7 @@ After the tile kernel has traced a unit's primary rays, the same render thread s
 pixels here (render.trace_rays), so the viewer shows lit tiles as they finish. The ray tree is
 walked breadth first in numpy ("wavefront"): every vertex (a hit) gets its direct light, then
 spawns its reflected and refracted rays, traced together through ray_batch's closest-hit
-kernel; their hits are the next level's vertices, up to options.max_depth levels after the
+kernel (in bundles of neighbouring pixels' rays where that changes no answer: shadow_bundles.py); their hits are the next level's vertices, up to options.max_depth levels after the
 primary one. Misses see the background's grey.
 
 Direct light at a vertex: ambient plus Lambert + Phong per light sample (light_samples.py),
@@ -334,7 +334,8 @@ class Lighting:
             kappa = max_curvature(self.scene, v.patch[src], patch_parameters(self.geom, v.patch[src], v.uv[src]))
             grow = grow + 2.0 * kappa * v.threshold[src]
         rays = batch_rays(origin, d, 0.0, np.inf, v.threshold[src], grow, side)
-        out = self.tracer.closest(rays)
+        # in bundles where that changes no answer (shadow_bundles.py), else one by one
+        out = (self.bundles or self.tracer).closest(rays)
         hit = out.hit[0]
         if self.recorder is not None:
             self.recorder("secondary", pix=v.pix[src], code=code, origin=origin, direction=d, hit=out, rays=rays,

@@ -15,20 +15,42 @@ depend on the ray (the `length` split under the float, fixed and mantissa criter
 its occlusion is whether its search finds a hit box before t_max, which the bundle's closest-hit
 search answers as the single ray's any-hit search does (each finds one exactly when a box of the
 same tree is accepted before t_max). Elsewhere the rays go one by one (ray_batch's any kernel).
+
+Reflected and refracted rays go the same way (PointBundles.closest): consecutive rays (neighbouring
+pixels' hits) in bundles of MAX_RAYS, each reporting the single ray's hit box, patch, parameters
+and normal; only the counters of a ray that hits follow the bundle's order of visits (teapot 512^2,
+16 samples: its reflected rays 1.01 -> 0.89 s).
 """
 from __future__ import annotations
 
+import math
 import threading
 
 import numpy as np
 
 from .bundle import MAX_RAYS, ONE, ZERO, bundle_rays, make_bundle_search, make_bvh_bundle_walk
 from .jit import njit, specialise
+from .kernel_channels import Outputs, allocate
 from .ray import H_TIN
 from .ray_batch import RB_TMAX, start_ray
 from .records import C_EFFORT, COUNTER_LEN
-from .tile_kernel import working_slots
+from .tile_kernel import working_slots, write_pixel
 from .variants import compiled
+
+
+@njit(cache=True, nogil=True, inline='always')
+def load_bundle(rays, first, count, br):
+    """Batch rays first .. first + count - 1 into the bundle's records, each with an empty hit
+    before its t_max and zero counters; the bundle's mask of them."""
+    active = ZERO
+    for j in range(count):
+        r = rays[first + j]
+        start_ray(br.rays[j], r)
+        br.hits[j, H_TIN] = r[RB_TMAX]
+        for k in range(COUNTER_LEN):
+            br.counts[j, k] = 0
+        active |= ONE << np.uint64(j)
+    return active
 
 
 def _trace_point_bundles(rays, starts, scene, q, occluded, effort, sl, br):
@@ -36,18 +58,34 @@ def _trace_point_bundles(rays, starts, scene, q, occluded, effort, sl, br):
     lv, trims, agg = scene
     for g in range(starts.shape[0] - 1):
         first = starts[g]
-        active = ZERO
-        for j in range(starts[g + 1] - first):
-            r = rays[first + j]
-            start_ray(br.rays[j], r)
-            br.hits[j, H_TIN] = r[RB_TMAX]
-            for k in range(COUNTER_LEN):
-                br.counts[j, k] = 0
-            active |= ONE << np.uint64(j)
+        active = load_bundle(rays, first, starts[g + 1] - first, br)
         walk(agg, lv, trims, q, sl, br, active)  # noqa: F821
         for j in range(starts[g + 1] - first):
             occluded[first + j] = br.hits[j, H_TIN] < rays[first + j, RB_TMAX]
             effort[first + j] = br.counts[j, C_EFFORT]
+
+
+def _trace_ray_bundles(rays, starts, scene, q, leaf_patch, out, sl, br, rs):
+    """The closest-hit kernel template for bundles of rays (see make_ray_bundle_kernel)."""
+    lv, trims, agg = scene
+    for g in range(starts.shape[0] - 1):
+        first = starts[g]
+        active = load_bundle(rays, first, starts[g + 1] - first, br)
+        walk(agg, lv, trims, q, sl, br, active)  # noqa: F821
+        for j in range(starts[g + 1] - first):
+            r = rays[first + j]
+            if not br.hits[j, H_TIN] < r[RB_TMAX]:  # as ray_batch's closest kernel: a miss
+                br.hits[j, H_TIN] = math.inf
+            d = math.sqrt(r[3] * r[3] + r[4] * r[4] + r[5] * r[5])
+            write_pixel(out, 0, first + j, br.rays[j], br.hits[j], br.counts[j], d, lv, trims, leaf_patch, rs)
+
+
+def make_ray_bundle_kernel(variant):
+    """trace(rays, starts, scene, q, leaf_patch, out, sl, br, rs): batch rays (N, RB_LEN) in bundles
+    at the offsets `starts`, closest hit through the BVH; every kernel channel of out (a (1, N)
+    image) written as ray_batch's closest kernel writes it (rs: the thread's ray scratch)."""
+    walk = make_bvh_bundle_walk(make_bundle_search(variant))
+    return njit(cache=True, nogil=True, _nrt=False)(specialise(_trace_ray_bundles, walk=walk))
 
 
 def make_point_bundle_kernel(variant):
@@ -91,6 +129,19 @@ class PointBundles:
                     self._bundle())
             compiled("point_bundles", self._variant, args, self.tracer.on_compile)(*args)
         return occluded, effort
+
+    def closest(self, rays: np.ndarray) -> Outputs:
+        """The kernel channels of rays (N, RB_LEN) as a (1, N) image, as BatchTracer.closest answers
+        them (but `effort` and the box counters, which follow the bundle's order), consecutive rays
+        in bundles of MAX_RAYS: reflected and refracted rays of neighbouring pixels."""
+        out = Outputs(**allocate(1, len(rays)))
+        if len(rays):
+            inp = self.tracer.inputs
+            scratch = self.tracer.scratch()
+            args = (rays, np.arange(0, len(rays) + MAX_RAYS, MAX_RAYS).clip(max=len(rays)), inp.scene, inp.query,
+                    inp.leaf_patch, out, scratch.slots, self._bundle(), scratch.ray)
+            compiled("ray_bundles", self._variant, args, self.tracer.on_compile)(*args)
+        return out
 
 
 def bundle_starts(point: np.ndarray) -> np.ndarray:
