@@ -53,7 +53,7 @@ def load_bundle(rays, first, count, br):
     return active
 
 
-def _trace_point_bundles(rays, starts, scene, q, occluded, effort, sl, br):
+def _trace_bundles(rays, starts, scene, q, leaf_patch, channels, out, occluded, effort, sl, br, rs):
     """The kernel template (see make_point_bundle_kernel)."""
     lv, trims, agg = scene
     for g in range(starts.shape[0] - 1):
@@ -61,39 +61,27 @@ def _trace_point_bundles(rays, starts, scene, q, occluded, effort, sl, br):
         active = load_bundle(rays, first, starts[g + 1] - first, br)
         walk(agg, lv, trims, q, sl, br, active)  # noqa: F821
         for j in range(starts[g + 1] - first):
-            occluded[first + j] = br.hits[j, H_TIN] < rays[first + j, RB_TMAX]
-            effort[first + j] = br.counts[j, C_EFFORT]
-
-
-def _trace_ray_bundles(rays, starts, scene, q, leaf_patch, out, sl, br, rs):
-    """The closest-hit kernel template for bundles of rays (see make_ray_bundle_kernel)."""
-    lv, trims, agg = scene
-    for g in range(starts.shape[0] - 1):
-        first = starts[g]
-        active = load_bundle(rays, first, starts[g + 1] - first, br)
-        walk(agg, lv, trims, q, sl, br, active)  # noqa: F821
-        for j in range(starts[g + 1] - first):
             r = rays[first + j]
-            if not br.hits[j, H_TIN] < r[RB_TMAX]:  # as ray_batch's closest kernel: a miss
+            found = br.hits[j, H_TIN] < r[RB_TMAX]
+            if not channels:
+                occluded[first + j] = found
+                effort[first + j] = br.counts[j, C_EFFORT]
+                continue
+            if not found:  # as ray_batch's closest kernel: a miss
                 br.hits[j, H_TIN] = math.inf
             d = math.sqrt(r[3] * r[3] + r[4] * r[4] + r[5] * r[5])
             write_pixel(out, 0, first + j, br.rays[j], br.hits[j], br.counts[j], d, lv, trims, leaf_patch, rs)
 
 
-def make_ray_bundle_kernel(variant):
-    """trace(rays, starts, scene, q, leaf_patch, out, sl, br, rs): batch rays (N, RB_LEN) in bundles
-    at the offsets `starts`, closest hit through the BVH; every kernel channel of out (a (1, N)
-    image) written as ray_batch's closest kernel writes it (rs: the thread's ray scratch)."""
-    walk = make_bvh_bundle_walk(make_bundle_search(variant))
-    return njit(cache=True, nogil=True, _nrt=False)(specialise(_trace_ray_bundles, walk=walk))
-
-
 def make_point_bundle_kernel(variant):
-    """trace(rays, starts, scene, q, occluded, effort, sl, br): batch rays (N, ray_batch.RB_LEN),
-    grouped into bundles of at most MAX_RAYS at the offsets `starts`, through the BVH; occluded (N,)
-    bool and effort (N,) int32 out; sl the thread's slots, br its BundleRays of MAX_RAYS rays."""
+    """trace(rays, starts, scene, q, leaf_patch, channels, out, occluded, effort, sl, br, rs): batch
+    rays (N, ray_batch.RB_LEN), grouped into bundles of at most MAX_RAYS at the offsets `starts`,
+    through the BVH (closest hit); channels: every kernel channel of out (a (1, N) image) written
+    as ray_batch's closest kernel writes it (rs: the thread's ray scratch), else occluded (N,) bool
+    and effort (N,) int32. sl: the thread's slots, br its BundleRays of MAX_RAYS rays. One kernel
+    for both: a second would be compiled again."""
     walk = make_bvh_bundle_walk(make_bundle_search(variant))
-    return njit(cache=True, nogil=True, _nrt=False)(specialise(_trace_point_bundles, walk=walk))
+    return njit(cache=True, nogil=True, _nrt=False)(specialise(_trace_bundles, walk=walk))
 
 
 def shares_tree(opts) -> bool:
@@ -118,29 +106,31 @@ class PointBundles:
             br = self._local.bundle = bundle_rays(MAX_RAYS, working_slots(inp), inp.sizes[2])
         return br
 
+    def _trace(self, rays, starts, channels: bool, out, occluded, effort):
+        inp = self.tracer.inputs
+        scratch = self.tracer.scratch()
+        args = (rays, starts, inp.scene, inp.query, inp.leaf_patch, channels, out, occluded, effort, scratch.slots,
+                self._bundle(), scratch.ray)
+        compiled("point_bundles", self._variant, args, self.tracer.on_compile)(*args)
+
     def occluded(self, rays: np.ndarray, point: np.ndarray):
         """(occluded (N,) bool, boxes computed (N,) int32) of rays (N, RB_LEN) sorted by their
         point (N,), as BatchTracer.occluded answers them."""
         n = len(rays)
         occluded, effort = np.zeros(n, bool), np.zeros(n, np.int32)
         if n:
-            inp = self.tracer.inputs
-            args = (rays, bundle_starts(point), inp.scene, inp.query, occluded, effort, self.tracer.scratch().slots,
-                    self._bundle())
-            compiled("point_bundles", self._variant, args, self.tracer.on_compile)(*args)
+            self._trace(rays, bundle_starts(point), False, Outputs(**allocate(1, 0)), occluded, effort)
         return occluded, effort
 
     def closest(self, rays: np.ndarray) -> Outputs:
         """The kernel channels of rays (N, RB_LEN) as a (1, N) image, as BatchTracer.closest answers
-        them (but `effort` and the box counters, which follow the bundle's order), consecutive rays
-        in bundles of MAX_RAYS: reflected and refracted rays of neighbouring pixels."""
-        out = Outputs(**allocate(1, len(rays)))
-        if len(rays):
-            inp = self.tracer.inputs
-            scratch = self.tracer.scratch()
-            args = (rays, np.arange(0, len(rays) + MAX_RAYS, MAX_RAYS).clip(max=len(rays)), inp.scene, inp.query,
-                    inp.leaf_patch, out, scratch.slots, self._bundle(), scratch.ray)
-            compiled("ray_bundles", self._variant, args, self.tracer.on_compile)(*args)
+        them (but the counters of a ray that hits, which follow the bundle's order of visits),
+        consecutive rays in bundles of MAX_RAYS: reflected and refracted rays of neighbouring pixels."""
+        n = len(rays)
+        out = Outputs(**allocate(1, n))
+        if n:
+            starts = np.arange(0, n + MAX_RAYS, MAX_RAYS).clip(max=n)
+            self._trace(rays, starts, True, out, np.zeros(0, bool), np.zeros(0, np.int32))
         return out
 
 

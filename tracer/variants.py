@@ -55,11 +55,10 @@ def label(variant: Variant) -> str:
 
 def _kernel(kind: str, variant: Variant):
     from .ray_batch import make_batch_kernel, make_penumbra_kernel
-    from .shadow_bundles import make_point_bundle_kernel, make_ray_bundle_kernel
+    from .shadow_bundles import make_point_bundle_kernel
     from .tile_kernel import make_ray_kernel, make_tile_kernel
     factory = {"tile": make_tile_kernel, "ray": make_ray_kernel, "batch": make_batch_kernel,
-               "penumbra": make_penumbra_kernel, "point_bundles": make_point_bundle_kernel,
-               "ray_bundles": make_ray_bundle_kernel}[kind]
+               "penumbra": make_penumbra_kernel, "point_bundles": make_point_bundle_kernel}[kind]
     key = (kind, variant._replace(precision=""))  # one dispatcher serves both precisions
     with _LOCK:
         if key not in _BUILT:
@@ -69,7 +68,7 @@ def _kernel(kind: str, variant: Variant):
 
 def compiled(kind: str, variant: Variant, args: tuple, on_compile=None):
     """The kernel `kind` ('tile', 'ray', ray_batch's 'batch' and 'penumbra', or shadow_bundles'
-    'point_bundles' and 'ray_bundles') of `variant`,
+    'point_bundles') of `variant`,
     compiled for the types of `args`.
 
     The first request for a variant in a process compiles it or loads it from the disk cache;
