@@ -328,12 +328,13 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
                 free[nfree] = a
                 nfree += 1
             continue
-        if not cached and (live & (live - ONE)) == ZERO:  # one ray left: on alone (_solo_search)
-            r = lowest_bit(live)
-            sl.mf[a, M_TIN] = br.tin[row, r]
-            sl.mf[a, M_TOUT] = br.tout[row, r]
-            nfree = solo(sl, a, pa, lv, trims, q, br, r, sp, free, nfree)  # noqa: F821
-            continue
+        if SOLO:  # noqa: F821
+            if not cached and (live & (live - ONE)) == ZERO:  # one ray left: on alone (_solo_search)
+                r = lowest_bit(live)
+                sl.mf[a, M_TIN] = br.tin[row, r]
+                sl.mf[a, M_TOUT] = br.tout[row, r]
+                nfree = solo(sl, a, pa, lv, trims, q, br, r, sp, free, nfree)  # noqa: F821
+                continue
         go = ZERO
         first_ray = 0
         d_first = 0.0
@@ -418,15 +419,19 @@ def _rational_only(p, lv, trims, q, sl, br, active):
     wide(p, wide_leaves(lv), trims, q, wide_slots(sl), br, active)  # noqa: F821
 
 
-def make_bundle_search(variant):
+def make_bundle_search(variant, alone: bool = True):
     """search(p, lv, trims, q, sl, br, active): patch p searched for the rays of mask `active` of
     the bundle br (BundleRays); each ray's hit shrinks as it finds closer hit boxes. Integral
     patches in the working precision, rational ones in float64 slots (as drivers.make_search),
-    from the thread's surface-tree cache if the variant has it."""
-    flags = dict(HAS_TRIMS=variant.trims, CACHED=variant.cache)
+    from the thread's surface-tree cache if the variant has it. alone: a ray left alone in a
+    sub-patch goes on with the single ray's steps (_solo_search: a second copy of the steps to
+    compile, about 15 s cold; it pays for primary rays under `float`, not for shadow rays)."""
+    flags = dict(HAS_TRIMS=variant.trims, CACHED=variant.cache, SOLO=alone)
     kernel = njit(cache=True, nogil=True, _nrt=False)
 
     def solo(general):
+        if not alone:
+            return None
         return njit(cache=True, nogil=True, _nrt=False, inline='always')(
             specialise(_solo_search, HAS_TRIMS=variant.trims, HAS_GENERAL=general))
     narrow = None
