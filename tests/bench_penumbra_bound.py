@@ -26,7 +26,6 @@ import tracer.lighting as lighting  # noqa: E402
 from tracer.fixed_order import dot3, norm  # noqa: E402
 from tracer.geometry import prepare  # noqa: E402
 from tracer.options import Options  # noqa: E402
-from tracer.ray_batch import batch_rays  # noqa: E402
 from tracer.render import render  # noqa: E402
 from tracer.scene import load_scene  # noqa: E402
 
@@ -57,9 +56,7 @@ def watch(tally: Tally):
         tally.points += len(mixed)
         rows, cols = np.nonzero(front & mixed[:, None])
         start = time.perf_counter()
-        o = origin[rows]
-        dt = v.grow[rows] * np.linalg.norm(lp[rows, cols] - o, axis=1)
-        rays = batch_rays(o, lp[rows, cols] - o, 0.0, 1.0, v.threshold[rows], dt, v.normal[rows])
+        rays = self.shadow_rays(v, lp, origin, rows, cols)
         again = self.bundles.occluded(rays, rows)[0] if self.bundles is not None else self.tracer.occluded(rays)[0]
         tally.mixed_rays += time.perf_counter() - start
         assert np.array_equal(~again, visible[rows, cols]), "the mixed points' rays traced again differ"

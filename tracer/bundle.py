@@ -31,7 +31,7 @@ from .search_steps import ADAPTIVE, halve, hull_accepts, judge_known, near_and_f
 from .search_steps import trim_accepts, trim_state
 from .subpatch import (I_DEPTH, I_LAST, I_STALLED, M_DPAR, M_OX, M_TIN, M_TOUT, hull_behind, hull_hit, hull_off_plane,
                        patch_info)
-from .subpatch import seam_plane
+from .subpatch import open_box, seam_plane
 from .surface_cache import S_DEPTH, S_FIRST, S_HITS, S_MISSES, copy_slot, take_pair, touch
 
 ONE = np.uint64(1)
@@ -163,13 +163,11 @@ def open_pair(sl, a, b, pa, br, row_a, row_b, m):
 
 @njit(cache=True, nogil=True, inline='always')
 def _alone(sl, s, pa, lr, hit):
-    """Slot s's box against one ray (its interval into the slot): does the ray meet it before its
-    closest hit, and not only behind its side plane? 1 or 0 (open_rays for a mask of one ray)"""
-    lo0, lo1, lo2, hi0, hi1, hi2 = _corners(sl, s)
-    ok, t_in, t_out = slab_at(lo0, lo1, lo2, hi0, hi1, hi2, lr)
-    sl.mf[s, M_TIN] = t_in
-    sl.mf[s, M_TOUT] = t_out
-    return 1 if ok and t_in < hit[H_TIN] and not (t_in <= lr[R_TMIN] and hull_behind(sl, s, pa, lr)) else 0
+    """Slot s's box against one ray (its interval into the slot, as the single ray's search tests
+    it): does the ray meet it before its closest hit, and not only behind its side plane? 1 or 0
+    (open_rays for a mask of one ray)"""
+    alive, _ = open_box(sl, s, lr, hit[H_TIN])
+    return 1 if alive and not (sl.mf[s, M_TIN] <= lr[R_TMIN] and hull_behind(sl, s, pa, lr)) else 0
 
 
 @njit(cache=True, nogil=True, inline='always')

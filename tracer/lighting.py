@@ -4,8 +4,9 @@ After the tile kernel has traced a unit's primary rays, the same render thread s
 pixels here (render.trace_rays), so the viewer shows lit tiles as they finish. The ray tree is
 walked breadth first in numpy ("wavefront"): every vertex (a hit) gets its direct light, then
 spawns its reflected and refracted rays, traced together through ray_batch's closest-hit
-kernel (in bundles of neighbouring pixels' rays where that changes no answer: shadow_bundles.py); their hits are the next level's vertices, up to options.max_depth levels after the
-primary one. Misses see the background's grey.
+kernel (in bundles of neighbouring pixels' rays where that changes no answer: shadow_bundles.py);
+their hits are the next level's vertices, up to options.max_depth levels after the primary one.
+Misses see the background's grey.
 
 Direct light at a vertex: ambient plus Lambert + Phong per light sample (light_samples.py),
 each sample weighted by its visibility: 0 where the sample lies behind the surface (decided
@@ -231,16 +232,14 @@ class Lighting:
         occluded = np.zeros((m, count), bool)
         if dark is not None:  # every sample ray would have met the occluding patch
             occluded[dark] = True
-        o = origin[rows]
-        dt = v.grow[rows] * np.linalg.norm(lp[rows, cols] - o, axis=1)
-        rays = batch_rays(o, lp[rows, cols] - o, 0.0, 1.0, v.threshold[rows], dt, v.normal[rows])
+        rays = self.shadow_rays(v, lp, origin, rows, cols)
         if self.bundles is not None:  # in bundles, consecutive points' rays together (shadow_bundles.py)
             occluded[rows, cols], effort = self.bundles.occluded(rays, rows)
         else:
             occluded[rows, cols], effort = self.tracer.occluded(rays)
         self._clock("shadow_rays", start)
         if self.recorder is not None:
-            self.recorder("shadow", pix=v.pix[rows], code=v.code[rows], light=li, origin=o, target=lp[rows, cols],
+            self.recorder("shadow", pix=v.pix[rows], code=v.code[rows], light=li, origin=origin[rows], target=lp[rows, cols],
                           occluded=occluded[rows, cols], effort=effort, rays=rays, box_min=v.lo[rows],
                           box_max=v.hi[rows], side=v.normal[rows])
         cls = None
@@ -248,6 +247,13 @@ class Lighting:
             umbra = ~asked if dark is None else ~asked | dark
             cls = np.where(lit, LIT, np.where(umbra, UMBRA, PENUMBRA))
         return front & ~occluded, need.sum(axis=1).astype(np.int32), cls
+
+    def shadow_rays(self, v: Vertices, lp, origin, rows, cols) -> np.ndarray:
+        """The batch rays from origin[rows] (m, 3) to the sample points lp[rows, cols] of the
+        vertices v (their threshold of detail and side plane)."""
+        o = origin[rows]
+        dt = v.grow[rows] * np.linalg.norm(lp[rows, cols] - o, axis=1)
+        return batch_rays(o, lp[rows, cols] - o, 0.0, 1.0, v.threshold[rows], dt, v.normal[rows])
 
     def _proven_umbra(self, v: Vertices, origin, li, ask):
         """(m,) bool: every shadow ray from these origins to light li proven occluded by one patch

@@ -84,6 +84,10 @@ def make_point_bundle_kernel(variant):
     return njit(cache=True, nogil=True, _nrt=False)(specialise(_trace_bundles, walk=walk))
 
 
+# What the kernel's `out` reads when it writes occlusion alone: empty, never written.
+_NO_CHANNELS = Outputs(**allocate(1, 0))
+
+
 def shares_tree(opts) -> bool:
     """Does every ray descend the same tree of sub-patches (so a bundle, or penumbra.py's cone search
     standing for a point's rays, changes no answer)?"""
@@ -119,7 +123,7 @@ class PointBundles:
         n = len(rays)
         occluded, effort = np.zeros(n, bool), np.zeros(n, np.int32)
         if n:
-            self._trace(rays, bundle_starts(point), False, Outputs(**allocate(1, 0)), occluded, effort)
+            self._trace(rays, bundle_starts(point), False, _NO_CHANNELS, occluded, effort)
         return occluded, effort
 
     def closest(self, rays: np.ndarray) -> Outputs:
