@@ -12,7 +12,11 @@ bundle visits two halves both of its rays meet differs (the half nearer to the b
 ray first), which can change which of two boxes holding a crossing at the same t is reported.
 
 The bundle walks the BVH as one: a node stays on the stack while any of its rays meets it.
-Bundles serve primary rays (closest hit); they carry no box budget and record no trace.
+The slab tests of nodes and sub-patch boxes, the prune by each ray's closest hit and the
+nearest entry go eight rays at a time (lanes.py: the rays' origins, directions and closest hits
+in columns, each lane the scalar test's operations), the rest ray by ray over the mask's bits.
+Bundles serve primary rays, and shadow and reflected rays (shadow_bundles.py); they carry no box
+budget and record no trace.
 """
 from __future__ import annotations
 
@@ -25,7 +29,9 @@ from .aggregate import BvhNodes  # noqa: F401 (the record the walk reads)
 from .drivers import WIDE_BITS, wide_leaves, wide_slots
 from .frustum import F_LEN, MIN_RAYS, at_least, bound_rays, misses_all
 from .jit import njit, specialise
-from .ray import H_TIN, RAY_LEN, R_O, R_TMIN, slab_at
+from .lanes import L_D, L_HIT, L_INV, L_LEN, L_O, L_PO, L_TMIN, WIDTH, ahead_lanes, at_start_lanes, count_lanes
+from .lanes import nearest_lanes, padded, slab_lanes
+from .ray import H_TIN, R_D, R_INV, RAY_LEN, R_O, R_TMIN
 from .records import C_BOX_TESTS, C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES
 from .search_steps import ADAPTIVE, halve, hull_accepts, judge_known, near_and_far, report, root_at, tighten
 from .search_steps import trim_accepts, trim_state
@@ -36,7 +42,11 @@ from .surface_cache import S_DEPTH, S_FIRST, S_HITS, S_MISSES, copy_slot, take_p
 
 ONE = np.uint64(1)
 ZERO = np.uint64(0)
+GROUP = np.uint64((1 << WIDTH) - 1)
 MAX_RAYS = 64
+# the walk's counters, rows of walk_counts
+W_BOX_TESTS, W_SURFACES, W_NODES, W_PATCHES = range(4)
+W_LEN = 4
 
 # A bundle's rays: rays and lrays (K, RAY_LEN) (lrays: moved into the searched patch's frame),
 # hits (K, HIT_LEN), counts (K, COUNTER_LEN) int64, lengths (K,) |direction|; per position of
@@ -45,8 +55,10 @@ MAX_RAYS = 64
 # stack: node (D,) int32, node_mask (D,) uint64, node_row (D,) int32, the row of node_tin (D, K).
 # row and node_row are permutations: moving an entry's intervals to another position moves its
 # row index, not K floats. bounds (frustum.F_LEN,): the bounds of the bundle's rays (the walk's).
+# The walk's rays in lanes (lanes.py: (L_LEN, K') with K' = K rounded up to whole groups of
+# WIDTH, as node_tin's rows are) and its counters there, walk_counts (W_LEN, K') int64.
 BundleRays = namedtuple("BundleRays", "rays lrays hits counts lengths slot mask row tin tout free node node_mask "
-                        "node_row node_tin bounds")
+                        "node_row node_tin bounds lanes walk_counts")
 
 if numba.config.DISABLE_JIT:
     def _trailing_zeros(m):
@@ -68,47 +80,18 @@ def bit(r):
 
 
 @njit(cache=True, nogil=True, inline='always')
+def _group_bits(m, g):
+    """The rays of mask m in lanes group g, as the group's low bits."""
+    return (m >> np.uint64(WIDTH * g)) & GROUP
+
+
+@njit(cache=True, nogil=True, inline='always')
 def add_count(counts, m, column, n):
     """counts[r, column] += n for every ray r of mask m."""
     while m != ZERO:
         r = lowest_bit(m)
         m &= m - ONE
         counts[r, column] += n
-
-
-@njit(cache=True, nogil=True, inline='always')
-def ahead(tin, row, hits, m, counts, column):
-    """The rays of m whose entry t into the box of `row` (tin[row, r]) lies before their own
-    closest hit: the others drop out of it. Each counted in counts[r, column] unless column < 0
-    (a constant at every call: the test folds away)."""
-    live = ZERO
-    while m != ZERO:
-        r = lowest_bit(m)
-        m &= m - ONE
-        if tin[row, r] < hits[r, H_TIN]:
-            live |= bit(r)
-            if column >= 0:
-                counts[r, column] += 1
-    return live
-
-
-@njit(cache=True, nogil=True, inline='always')
-def _enters(corners, rays, tin, hits, row, r):
-    """Ray r (of rays) against a box's corners, shifted as slab shifts them: its entry t into
-    tin[row, r]; (does it meet the box before its own closest hit, its exit t)."""
-    lo0, lo1, lo2, hi0, hi1, hi2 = corners
-    ok, t_in, t_out = slab_at(lo0, lo1, lo2, hi0, hi1, hi2, rays[r])
-    tin[row, r] = t_in
-    return ok and t_in < hits[r, H_TIN], t_out
-
-
-@njit(cache=True, nogil=True, inline='always')
-def _meets(corners, br, row, r):
-    """Ray r against a slot's box, its corners shifted by the slot's offset (_corners): its
-    interval into tin[row, r], tout[row, r]; does it meet the box before its own closest hit?"""
-    alive, t_out = _enters(corners, br.lrays, br.tin, br.hits, row, r)
-    br.tout[row, r] = t_out
-    return alive
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -122,43 +105,61 @@ def _corners(sl, s):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _behind(sl, s, pa, br, row, r):
-    """Is slot s, whose box holds ray r's origin, wholly behind the ray's side plane (as
-    search_steps.open_child drops it for the single ray)?"""
-    return br.tin[row, r] <= br.lrays[r, R_TMIN] and hull_behind(sl, s, pa, br.lrays[r])
+def _slot_rays(sl, s, pa, br, row, g, bits):
+    """The rays of group g in bits (the group's low bits) against slot s's box, eight at a time:
+    their intervals into tin[row], tout[row]; those that meet it before their own closest hit
+    (and not wholly behind the side plane of a ray whose origin it holds, as
+    search_steps.open_child drops it for the single ray)."""
+    lo0, lo1, lo2, hi0, hi1, hi2 = _corners(sl, s)
+    met = slab_lanes(br.lanes, L_PO, g, lo0, lo1, lo2, hi0, hi1, hi2, br.tin, br.tout, row) & bits
+    start = at_start_lanes(br.tin, row, br.lanes, g, met)
+    shift = np.uint64(WIDTH * g)
+    while start != ZERO:  # boxes that hold a ray's origin: the single ray's side-plane test
+        k = lowest_bit(start)
+        start &= start - ONE
+        r = np.int64(shift) + k
+        if hull_behind(sl, s, pa, br.lrays[r]):
+            met &= ~bit(k)
+    return met
 
 
 @njit(cache=True, nogil=True, inline='always')
 def open_rays(sl, s, pa, br, row, m):
     """Slab-test slot s's box against the rays of m (intervals into tin[row], tout[row]); the
-    rays that meet it before their own closest hit (and are not behind it: _behind)."""
+    rays that meet it before their own closest hit (and are not behind it: _slot_rays)."""
     alive = ZERO
-    corners = _corners(sl, s)
-    while m != ZERO:
-        r = lowest_bit(m)
-        m &= m - ONE
-        if _meets(corners, br, row, r) and not _behind(sl, s, pa, br, row, r):
-            alive |= bit(r)
+    for g in range(br.lanes.shape[1] // WIDTH):
+        bits = _group_bits(m, g)
+        if bits != ZERO:
+            alive |= _slot_rays(sl, s, pa, br, row, g, bits) << np.uint64(WIDTH * g)
     return alive
 
 
 @njit(cache=True, nogil=True, inline='always')
 def open_pair(sl, a, b, pa, br, row_a, row_b, m):
-    """open_rays for the halves a and b in one pass over the rays (each ray's two slab tests side
-    by side); the rays of each half. (The bundle's bounds, frustum.py, rarely reject a half: counted
-    on the teapot, 12 % of the halves tested by four rays or more, saving less than they cost.)"""
+    """open_rays for the halves a and b, group by group; the rays of each half. (The bundle's
+    bounds, frustum.py, rarely reject a half: counted on the teapot, 12 % of the halves tested by
+    four rays or more, saving less than they cost.)"""
     alive_a = ZERO
     alive_b = ZERO
-    corners_a = _corners(sl, a)
-    corners_b = _corners(sl, b)
-    while m != ZERO:
-        r = lowest_bit(m)
-        m &= m - ONE
-        if _meets(corners_a, br, row_a, r) and not _behind(sl, a, pa, br, row_a, r):
-            alive_a |= bit(r)
-        if _meets(corners_b, br, row_b, r) and not _behind(sl, b, pa, br, row_b, r):
-            alive_b |= bit(r)
+    for g in range(br.lanes.shape[1] // WIDTH):
+        bits = _group_bits(m, g)
+        if bits != ZERO:
+            shift = np.uint64(WIDTH * g)
+            alive_a |= _slot_rays(sl, a, pa, br, row_a, g, bits) << shift
+            alive_b |= _slot_rays(sl, b, pa, br, row_b, g, bits) << shift
     return alive_a, alive_b
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _nearest_in(tin, br, row, m):
+    """nearest for an interval row of tin (the sub-patch stack's or the walk's), from the lanes."""
+    t = np.inf
+    for g in range(br.lanes.shape[1] // WIDTH):
+        bits = _group_bits(m, g)
+        if bits != ZERO:
+            t = min(t, nearest_lanes(tin, row, g, bits))
+    return t
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -168,17 +169,6 @@ def _alone(sl, s, pa, lr, hit):
     (open_rays for a mask of one ray)"""
     alive, _ = open_box(sl, s, lr, hit[H_TIN])
     return 1 if alive and not (sl.mf[s, M_TIN] <= lr[R_TMIN] and hull_behind(sl, s, pa, lr)) else 0
-
-
-@njit(cache=True, nogil=True, inline='always')
-def nearest(tin, row, m):
-    """The smallest entry t into the box of `row` (tin[row, r]) over the rays of m."""
-    t = np.inf
-    while m != ZERO:
-        r = lowest_bit(m)
-        m &= m - ONE
-        t = min(t, tin[row, r])
-    return t
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -209,7 +199,7 @@ def push_halves(sl, a, b, sp, pa, br, go, direction):
             else:
                 keep_b &= ~bit(r)
     if keep_a != ZERO and keep_b != ZERO:
-        if nearest(br.tin, row_a, keep_a) <= nearest(br.tin, row_b, keep_b):  # a nearer: a on top
+        if _nearest_in(br.tin, br, row_a, keep_a) <= _nearest_in(br.tin, br, row_b, keep_b):  # a nearer: a on top
             br.row[sp], br.row[sp + 1] = row_b, row_a
             a, b, keep_a, keep_b = b, a, keep_b, keep_a
         br.slot[sp], br.slot[sp + 1] = a, b
@@ -288,6 +278,7 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
             br.lrays[r, k] = br.rays[r, k]
         for c in range(3):
             br.lrays[r, R_O + c] = br.rays[r, R_O + c] - lv.frame[p, c]
+            br.lanes[L_PO + c, r] = br.lrays[r, R_O + c]
     cache = sl.cache
     first = cache.state[S_FIRST] if CACHED else br.free.shape[0]  # noqa: F821
     ncoord = 4 if pa.rational else 3
@@ -320,7 +311,7 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
         a = br.slot[sp]
         cached = a >= first
         row = br.row[sp]
-        live = ahead(br.tin, row, br.hits, br.mask[sp], br.counts, -1)
+        live = _ahead_in(br.tin, br, row, br.mask[sp], False)
         if live == ZERO or (HAS_TRIMS and trim_state(sl, a, pa, trims) < 0):  # noqa: F821
             if not cached:
                 free[nfree] = a
@@ -332,6 +323,7 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
                 sl.mf[a, M_TIN] = br.tin[row, r]
                 sl.mf[a, M_TOUT] = br.tout[row, r]
                 nfree = solo(sl, a, pa, lv, trims, q, br, r, sp, free, nfree)  # noqa: F821
+                br.lanes[L_HIT, r] = br.hits[r, H_TIN]
                 continue
         go = ZERO
         first_ray = 0
@@ -361,6 +353,7 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
                     kept = 1 if trim_accepts(sl, a, pa, trims) else 0
                 if kept != 0:
                     report(br.hits[r], sl, a, pa, lv)
+                    br.lanes[L_HIT, r] = br.hits[r, H_TIN]
         if go == ZERO:
             if not cached:
                 free[nfree] = a
@@ -454,57 +447,120 @@ def _node_corners(node_box, node):
 
 
 @njit(cache=True, nogil=True, inline='always')
+def _load_lanes(br, m):
+    """The rays of m into the walk's lanes (lanes.py), and their counters there zeroed."""
+    lanes = br.lanes
+    wc = br.walk_counts
+    for k in range(wc.shape[0]):
+        for r in range(wc.shape[1]):
+            wc[k, r] = 0
+    while m != ZERO:
+        r = lowest_bit(m)
+        m &= m - ONE
+        ray = br.rays[r]
+        for c in range(3):
+            lanes[L_O + c, r] = ray[R_O + c]
+            lanes[L_D + c, r] = ray[R_D + c]
+            lanes[L_INV + c, r] = ray[R_INV + c]
+        lanes[L_TMIN, r] = ray[R_TMIN]
+        lanes[L_HIT, r] = br.hits[r, H_TIN]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _store_counts(br, m):
+    """The walk's counters, kept in lanes, added to the rays' own."""
+    wc = br.walk_counts
+    while m != ZERO:
+        r = lowest_bit(m)
+        m &= m - ONE
+        br.counts[r, C_BOX_TESTS] += wc[W_BOX_TESTS, r]
+        br.counts[r, C_SURFACES] += wc[W_SURFACES, r]
+        br.counts[r, C_NODES] += wc[W_NODES, r]
+        br.counts[r, C_PATCHES] += wc[W_PATCHES, r]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _count_walk(br, m, row, n):
+    """walk_counts[row, r] += n for every ray r of m."""
+    for g in range(br.lanes.shape[1] // WIDTH):
+        bits = _group_bits(m, g)
+        if bits != ZERO:
+            count_lanes(br.walk_counts, row, g, bits, n)
+
+
+@njit(cache=True, nogil=True, inline='always')
 def _node_rays(node_box, node, br, row, m):
     """Slab-test a BVH node against the rays of m (intervals into node_tin[row]); the rays that
     meet it before their own closest hit."""
     alive = ZERO
-    corners = _node_corners(node_box, node)
-    while m != ZERO:
-        r = lowest_bit(m)
-        m &= m - ONE
-        if _enters(corners, br.rays, br.node_tin, br.hits, row, r)[0]:
-            alive |= bit(r)
+    lo0, lo1, lo2, hi0, hi1, hi2 = _node_corners(node_box, node)
+    for g in range(br.lanes.shape[1] // WIDTH):
+        bits = _group_bits(m, g)
+        if bits != ZERO:
+            met = slab_lanes(br.lanes, L_O, g, lo0, lo1, lo2, hi0, hi1, hi2, br.node_tin, None, row) & bits
+            alive |= met << np.uint64(WIDTH * g)
     return alive
 
 
 @njit(cache=True, nogil=True, inline='always')
 def _children_rays(node_box, left, right, br, row_l, row_r, m, surfaces):
     """Both children of a BVH node against the rays of m (intervals into node_tin[row_l] and
-    [row_r]) in one pass over the rays, which also counts each ray's two box tests and the
-    surfaces of the leaf children among them; the rays of each child. With enough rays, a child
-    the bundle's bounds miss (frustum.py: the same verdicts) is not tested ray by ray."""
-    corners_l = _node_corners(node_box, left)
-    corners_r = _node_corners(node_box, right)
+    [row_r]), eight rays at a time, counting each ray's two box tests and the surfaces of the leaf
+    children among them; the rays of each child. With enough rays, a child the bundle's bounds
+    miss (frustum.py: the same verdicts) is not tested ray by ray."""
+    l0, l1, l2, l3, l4, l5 = _node_corners(node_box, left)
+    r0, r1, r2, r3, r4, r5 = _node_corners(node_box, right)
     test_l = True
     test_r = True
     if at_least(m, MIN_RAYS):
-        test_l = not misses_all(corners_l, br.bounds)
-        test_r = not misses_all(corners_r, br.bounds)
+        test_l = not misses_all((l0, l1, l2, l3, l4, l5), br.bounds)
+        test_r = not misses_all((r0, r1, r2, r3, r4, r5), br.bounds)
     alive_l = ZERO
     alive_r = ZERO
-    counts = br.counts
-    while m != ZERO:
-        r = lowest_bit(m)
-        m &= m - ONE
-        counts[r, C_BOX_TESTS] += 2
-        counts[r, C_SURFACES] += surfaces
-        if test_l and _enters(corners_l, br.rays, br.node_tin, br.hits, row_l, r)[0]:
-            alive_l |= bit(r)
-        if test_r and _enters(corners_r, br.rays, br.node_tin, br.hits, row_r, r)[0]:
-            alive_r |= bit(r)
+    lanes = br.lanes
+    for g in range(lanes.shape[1] // WIDTH):
+        bits = _group_bits(m, g)
+        if bits == ZERO:
+            continue
+        count_lanes(br.walk_counts, W_BOX_TESTS, g, bits, 2)
+        if surfaces:
+            count_lanes(br.walk_counts, W_SURFACES, g, bits, surfaces)
+        shift = np.uint64(WIDTH * g)
+        if test_l:
+            alive_l |= (slab_lanes(lanes, L_O, g, l0, l1, l2, l3, l4, l5, br.node_tin, None, row_l) & bits) << shift
+        if test_r:
+            alive_r |= (slab_lanes(lanes, L_O, g, r0, r1, r2, r3, r4, r5, br.node_tin, None, row_r) & bits) << shift
     return alive_l, alive_r
 
 
+@njit(cache=True, nogil=True, inline='always')
+def _ahead_in(tin, br, row, m, count_nodes):
+    """The rays of m whose entry t into the box of `row` (tin[row, r]) lies before their own
+    closest hit: the others drop out of it (from the lanes). count_nodes: each live ray counts a
+    node (the walk's)."""
+    live = ZERO
+    for g in range(br.lanes.shape[1] // WIDTH):
+        bits = _group_bits(m, g)
+        if bits != ZERO:
+            kept = ahead_lanes(tin, row, br.lanes, g, bits)
+            if count_nodes:
+                count_lanes(br.walk_counts, W_NODES, g, kept, 1)
+            live |= kept << np.uint64(WIDTH * g)
+    return live
+
+
 def _bvh_bundle_walk(agg, lv, trims, q, sl, br, active):
-    """The BVH walk of a bundle (template, specialised by make_bvh_bundle_walk)."""
+    """The BVH walk of a bundle (template, specialised by make_bvh_bundle_walk): its node tests
+    eight rays at a time (lanes.py), its counters kept in lanes until it ends."""
     node_child = agg.node_child
-    counts = br.counts
-    add_count(counts, active, C_BOX_TESTS, 1)
+    _load_lanes(br, active)
+    _count_walk(br, active, W_BOX_TESTS, 1)
     if node_child[0, 0] < 0:
-        add_count(counts, active, C_SURFACES, agg.leaf_count[0])
+        _count_walk(br, active, W_SURFACES, agg.leaf_count[0])
     bound_rays(br.bounds, br.rays, active)
     m = _node_rays(agg.node_box, 0, br, br.node_row[0], active)
     if m == ZERO:
+        _store_counts(br, active)
         return
     br.node[0] = 0
     br.node_mask[0] = m
@@ -512,14 +568,14 @@ def _bvh_bundle_walk(agg, lv, trims, q, sl, br, active):
     while top > 0:
         top -= 1
         node = br.node[top]
-        live = ahead(br.node_tin, br.node_row[top], br.hits, br.node_mask[top], counts, C_NODES)  # counted too
+        live = _ahead_in(br.node_tin, br, br.node_row[top], br.node_mask[top], True)
         if live == ZERO:
             continue
         left = node_child[node, 0]
         if left < 0:
             first = agg.leaf_first[node]
-            add_count(counts, live, C_PATCHES, agg.leaf_count[node])  # the searches below count no patches
-            for k in range(first, first + agg.leaf_count[node]):
+            _count_walk(br, live, W_PATCHES, agg.leaf_count[node])  # the searches below count no patches
+            for k in range(first, first + agg.leaf_count[node]):  # (each hit they report goes into the lanes)
                 search(agg.items[k], lv, trims, q, sl, br, live)  # noqa: F821
             continue
         right = node_child[node, 1]
@@ -541,7 +597,7 @@ def _bvh_bundle_walk(agg, lv, trims, q, sl, br, active):
                 br.node_row[top], br.node_row[top + 1] = row_r, row_l
             top += 1
             continue
-        if nearest(br.node_tin, row_l, ml) <= nearest(br.node_tin, row_r, mr):  # left nearer: right below it
+        if _nearest_in(br.node_tin, br, row_l, ml) <= _nearest_in(br.node_tin, br, row_r, mr):  # left nearer: right below it
             br.node_row[top], br.node_row[top + 1] = row_r, row_l
             br.node[top], br.node[top + 1] = right, left
             br.node_mask[top], br.node_mask[top + 1] = mr, ml
@@ -549,6 +605,7 @@ def _bvh_bundle_walk(agg, lv, trims, q, sl, br, active):
             br.node[top], br.node[top + 1] = left, right
             br.node_mask[top], br.node_mask[top + 1] = ml, mr
         top += 2
+    _store_counts(br, active)
 
 
 def make_bvh_bundle_walk(search):
@@ -564,7 +621,8 @@ def bundle_rays(count: int, slots: int, stack: int) -> BundleRays:
     from .records import COUNTER_LEN
     return BundleRays(np.zeros((count, RAY_LEN)), np.zeros((count, RAY_LEN)), np.zeros((count, HIT_LEN)),
                       np.zeros((count, COUNTER_LEN), np.int64), np.zeros(count), np.zeros(slots, np.int32),
-                      np.zeros(slots, np.uint64), np.arange(slots, dtype=np.int32), np.zeros((slots, count)),
-                      np.zeros((slots, count)), np.zeros(slots, np.int32), np.zeros(stack, np.int32),
-                      np.zeros(stack, np.uint64), np.arange(stack, dtype=np.int32), np.zeros((stack, count)),
-                      np.zeros(F_LEN))
+                      np.zeros(slots, np.uint64), np.arange(slots, dtype=np.int32), np.zeros((slots, padded(count))),
+                      np.zeros((slots, padded(count))), np.zeros(slots, np.int32), np.zeros(stack, np.int32),
+                      np.zeros(stack, np.uint64), np.arange(stack, dtype=np.int32),
+                      np.zeros((stack, padded(count))), np.zeros(F_LEN), np.zeros((L_LEN, padded(count))),
+                      np.zeros((W_LEN, padded(count)), np.int64))
