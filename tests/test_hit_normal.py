@@ -66,3 +66,34 @@ def test_hit_normal_is_normal_at_bit_for_bit(degree, dtype):
                 assert want.tobytes() == got.tobytes(), (pts, u, v, want, got)
                 compared += 1
     assert compared == 60 * len(PARAMS) ** 2
+
+
+@pytest.mark.interpreted
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_bicubic_tangents_fallback_is_the_intrinsic(dtype):
+    """simd.bicubic_tangents' numpy version (NUMBA_DISABLE_JIT=1) writes the intrinsic's bits, and
+    both are bezier.tangents' (the three coordinates' sums in its order)."""
+    from numba import config, njit
+
+    from tracer import bezier, simd
+    rng = np.random.default_rng(83)
+    compiled = None if config.DISABLE_JIT else njit(lambda c, s, w, work: simd.bicubic_tangents(
+        c, s, w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11], w[12], w[13], work))
+    for pts in _patches(rng, 3, 3, dtype):
+        ctrl = np.zeros((4, 19), dtype)
+        ctrl[:, 3:] = pts
+        for u, v in zip(PARAMS, PARAMS[::-1]):
+            rows = np.zeros((4, 4))
+            for k, (deg, t) in enumerate(((3, u), (3, v), (2, u), (2, v))):
+                bezier._bernstein_row(deg, t, rows[k])
+            want = np.zeros((6, 4))
+            for c in range(3):
+                bezier.tangents(pts[c].astype(np.float64), 3, 3, rows[0], rows[1], rows[2], rows[3], c, want)
+            weights = np.concatenate([rows[0], rows[1], rows[2, :3], rows[3, :3]])
+            works = [np.zeros((6, 4))]
+            simd.bicubic_tangents_python(ctrl, 3, *weights, works[0])
+            if compiled is not None:
+                works.append(np.zeros((6, 4)))
+                compiled(ctrl, 3, weights, works[1])
+            for work in works:
+                assert work[1:4, :3].tobytes() == want[1:4, :3].tobytes(), (pts, u, v)

@@ -7,7 +7,8 @@ import numpy as np
 
 from .jit import njit
 
-from .bezier import _bernstein_row, normal_at, normal_from, tangents
+from .bezier import normal_at, normal_from
+from .simd import bicubic_tangents
 from .ray import H_PATCH, H_U, H_V, R_D
 
 
@@ -22,7 +23,7 @@ def hit_normal(hit, ctrl, pstart, deg_u, deg_v, rational, ray, pts, scratch, wor
     u = hit[H_U]
     v = hit[H_V]
     if m == 3 and n == 3 and rational[p] == 0:
-        found = _bicubic_normal(ctrl, start, u, v, pts, scratch, work, out)
+        found = _bicubic_normal(ctrl, start, u, v, work, out)
     elif m == 1 and n == 1 and rational[p] == 0:
         found = _bilinear_normal(ctrl, start, u, v, work, out)
     else:
@@ -43,20 +44,36 @@ def hit_normal(hit, ctrl, pstart, deg_u, deg_v, rational, ray, pts, scratch, wor
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _bicubic_normal(ctrl, start, u, v, pts, scratch, work, out):
-    """normal_at for an integral bicubic leaf, bit for bit: the same tangents, with the degrees
-    constants (the loops unrolled) and neither the point itself nor the weights computed."""
-    three = np.int64(3)
-    two = np.int64(2)
-    for c in range(3):
-        for k in range(16):
-            pts[c, k] = ctrl[c, start + k]
-    _bernstein_row(three, u, scratch[0])
-    _bernstein_row(three, v, scratch[1])
-    _bernstein_row(two, u, scratch[2])
-    _bernstein_row(two, v, scratch[3])
-    for c in range(3):
-        tangents(pts[c], three, three, scratch[0], scratch[1], scratch[2], scratch[3], c, work)
+def _row3(t):
+    """bezier._bernstein_row(3, t), its recurrence written out: the same operations in its order."""
+    s = 1.0 - t
+    a0 = 0.0 + s * 1.0
+    a1 = t * 1.0
+    b0 = 0.0 + s * a0
+    b1 = t * a0 + s * a1
+    b2 = t * a1
+    return 0.0 + s * b0, t * b0 + s * b1, t * b1 + s * b2, t * b2
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _row2(t):
+    """bezier._bernstein_row(2, t), written out as _row3."""
+    s = 1.0 - t
+    a0 = 0.0 + s * 1.0
+    a1 = t * 1.0
+    return 0.0 + s * a0, t * a0 + s * a1, t * a1
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _bicubic_normal(ctrl, start, u, v, work, out):
+    """normal_at for an integral bicubic leaf, bit for bit: the Bernstein rows written out, the
+    tangents with the three coordinates side by side (simd.bicubic_tangents), neither the point
+    itself nor its weight computed."""
+    bu0, bu1, bu2, bu3 = _row3(u)
+    bv0, bv1, bv2, bv3 = _row3(v)
+    du0, du1, du2 = _row2(u)
+    dv0, dv1, dv2 = _row2(v)
+    bicubic_tangents(ctrl, start, bu0, bu1, bu2, bu3, bv0, bv1, bv2, bv3, du0, du1, du2, dv0, dv1, dv2, work)
     return normal_from(work, u, v, False, out)
 
 

@@ -1,5 +1,5 @@
-"""The bicubic de Casteljau split in 4-wide vectors, and the bicubic hull's extent across a plane
-in 16-wide ones (LLVM IR through numba intrinsics).
+"""The bicubic de Casteljau split in 4-wide vectors, the bicubic hull's extent across a plane in
+16-wide ones, and a bicubic's tangents (LLVM IR through numba intrinsics).
 
 Numba compiles the scalar split to scalar instructions (it leaves LLVM's SLP vectoriser off),
 and a split is a third of the search. Here the 4 x 4 control points of one coordinate are four
@@ -14,6 +14,10 @@ and x n0 + y n1 + z n2 is formed lane by lane as the scalar loop forms it; the l
 value are exact (min and max do not round; which of two equal zeros comes out cannot matter
 to the test, which adds them to an offset and compares), a NaN skipped as the loop's min and max
 skip it.
+
+The hit normal's tangents (bicubic_tangents) hold a point's x, y and z in the lanes of one
+vector: each lane sums its coordinate's terms in bezier.tangents' order, so the three sums are
+the scalar ones, formed side by side.
 
 Intrinsics cannot run in Python, so with NUMBA_DISABLE_JIT=1 the same names are bound to
 numpy versions that do the same operations in the same order (split_u_cubic_python).
@@ -140,6 +144,18 @@ def _reduce_lanes(builder, op, vector, lanes):
     return builder.extract_element(vector, ir.IntType(32)(0))
 
 
+def _row16(context, builder, arr_ty, arr_v, indices):
+    """The 16 values of arr from indices on (the last index's axis), as a 16-lane float64 vector."""
+    arr = context.make_array(arr_ty)(context, builder, arr_v)
+    elem = context.get_value_type(arr_ty.dtype)
+    ptr = cgutils.get_item_pointer2(context, builder, arr.data, cgutils.unpack_tuple(builder, arr.shape),
+                                    cgutils.unpack_tuple(builder, arr.strides), arr_ty.layout, indices)
+    row = builder.load(builder.bitcast(ptr, ir.VectorType(elem, 16).as_pointer()), align=context.get_abi_sizeof(elem))
+    if elem != ir.DoubleType():
+        row = builder.fpext(row, ir.VectorType(ir.DoubleType(), 16))
+    return row
+
+
 def dist_range_cubic(typingctx, buf, s, n0, n1, n2):
     """(least, greatest) of x n0 + y n1 + z n2 over the 16 control points of slot s, float64."""
     if not (isinstance(buf, types.Array) and buf.ndim == 3 and buf.layout == 'C'
@@ -151,20 +167,11 @@ def dist_range_cubic(typingctx, buf, s, n0, n1, n2):
         buf_ty, s_ty = signature.args[:2]
         buf_v, s_v, *normal = args
         s_i = context.cast(builder, s_v, s_ty, types.intp)
-        points = context.make_array(buf_ty)(context, builder, buf_v)
-        elem = context.get_value_type(buf_ty.dtype)
         double = ir.DoubleType()
-        shape = cgutils.unpack_tuple(builder, points.shape)
-        strides = cgutils.unpack_tuple(builder, points.strides)
         total = None
         for c in range(3):
-            ptr = cgutils.get_item_pointer2(context, builder, points.data, shape, strides, buf_ty.layout,
-                                            [s_i, context.get_constant(types.intp, c),
-                                             context.get_constant(types.intp, 0)])
-            row = builder.load(builder.bitcast(ptr, ir.VectorType(elem, 16).as_pointer()),
-                               align=context.get_abi_sizeof(elem))
-            if elem != double:
-                row = builder.fpext(row, ir.VectorType(double, 16))
+            row = _row16(context, builder, buf_ty, buf_v, [s_i, context.get_constant(types.intp, c),
+                                                           context.get_constant(types.intp, 0)])
             lane = builder.insert_element(ir.Constant(ir.VectorType(double, 16), ir.Undefined), normal[c],
                                           ir.IntType(32)(0))
             term = builder.fmul(row, _shuffle(builder, lane, lane, [0] * 16))
@@ -176,6 +183,71 @@ def dist_range_cubic(typingctx, buf, s, n0, n1, n2):
         high = builder.select(nan, ir.Constant(lanes, [ir.Constant(double, -math.inf)] * 16), total)
         return context.make_tuple(builder, signature.return_type,
                                   [_reduce_lanes(builder, _min, low, 16), _reduce_lanes(builder, _max, high, 16)])
+
+    return sig, codegen
+
+
+def _point_vectors(builder, rows):
+    """The 16 points (x, y, z, z) as 4-lane vectors, from one 16-lane vector per coordinate."""
+    i32 = ir.IntType(32)
+    points = []
+    for k in range(16):
+        p = ir.Constant(ir.VectorType(rows[0].type.element, 4), ir.Undefined)
+        for lane, c in enumerate((0, 1, 2, 2)):
+            p = builder.insert_element(p, builder.extract_element(rows[c], i32(k)), i32(lane))
+        points.append(p)
+    return points
+
+
+def bicubic_tangents(typingctx, ctrl, start, bu0, bu1, bu2, bu3, bv0, bv1, bv2, bv3, du0, du1, du2, dv0, dv1, dv2,
+                     work):
+    """bezier.tangents for an integral bicubic (points ctrl[:3, start:start + 16]) with the Bernstein
+    rows bu, bv (degree 3) and du, dv (degree 2), the three coordinates side by side in the lanes
+    of one vector: work[1, :3] = dS/du, work[2, :3] = dS/dv, work[3, :3] = d2S/dudv, each lane's
+    terms in tangents' order from the same 0.0, each weight du[i] * bv[j] formed as it forms it."""
+    if not (isinstance(ctrl, types.Array) and ctrl.ndim == 2 and ctrl.layout == 'C'
+            and ctrl.dtype in (types.float32, types.float64)
+            and isinstance(work, types.Array) and work.ndim == 2 and work.dtype == types.float64):
+        return None
+    sig = types.void(ctrl, start, *([types.float64] * 14), work)
+
+    def codegen(context, builder, signature, args):
+        ctrl_ty, start_ty = signature.args[:2]
+        work_ty = signature.args[-1]
+        ctrl_v, start_v, *weights, work_v = args
+        bu, bv, du, dv = weights[0:4], weights[4:8], weights[8:11], weights[11:14]
+        start_i = context.cast(builder, start_v, start_ty, types.intp)
+        double = ir.DoubleType()
+        p = _point_vectors(builder, [_row16(context, builder, ctrl_ty, ctrl_v, [context.get_constant(types.intp, c),
+                                                                                 start_i]) for c in range(3)])
+        vec = ir.VectorType(double, 4)
+        i32 = ir.IntType(32)
+
+        def splat(x):
+            one = builder.insert_element(ir.Constant(vec, ir.Undefined), x, i32(0))
+            return _shuffle(builder, one, one, [0, 0, 0, 0])
+
+        def total(terms):
+            acc = ir.Constant(vec, [ir.Constant(double, 0.0)] * 4)
+            for a, b, diff in terms:
+                acc = builder.fadd(acc, builder.fmul(splat(builder.fmul(a, b)), diff))
+            return acc
+        su = total((du[i], bv[j], builder.fsub(p[4 * j + i + 1], p[4 * j + i])) for j in range(4) for i in range(3))
+        sv = total((bu[i], dv[j], builder.fsub(p[4 * j + i + 4], p[4 * j + i])) for j in range(3) for i in range(4))
+        suv = total((du[i], dv[j], builder.fadd(builder.fsub(builder.fsub(p[4 * j + i + 5], p[4 * j + i + 4]),
+                                                             p[4 * j + i + 1]), p[4 * j + i]))
+                    for j in range(3) for i in range(3))
+        out = context.make_array(work_ty)(context, builder, work_v)
+        out_shape = cgutils.unpack_tuple(builder, out.shape)
+        out_strides = cgutils.unpack_tuple(builder, out.strides)
+        for k, (value, factor) in enumerate(((su, 3.0), (sv, 3.0), (suv, 9.0))):
+            value = builder.fmul(ir.Constant(vec, [ir.Constant(double, factor)] * 4), value)
+            for c in range(3):
+                ptr = cgutils.get_item_pointer2(context, builder, out.data, out_shape, out_strides, work_ty.layout,
+                                                [context.get_constant(types.intp, 1 + k),
+                                                 context.get_constant(types.intp, c)])
+                builder.store(builder.extract_element(value, i32(c)), ptr)
+        return context.get_dummy_value()
 
     return sig, codegen
 
@@ -242,13 +314,33 @@ def dist_range_cubic_python(buf, s, n0, n1, n2):
     return float(np.where(nan, np.inf, dist).min()), float(np.where(nan, -np.inf, dist).max())
 
 
+
+def bicubic_tangents_python(ctrl, start, bu0, bu1, bu2, bu3, bv0, bv1, bv2, bv3, du0, du1, du2, dv0, dv1, dv2, work):
+    p = [ctrl[:3, start + k].astype(np.float64) for k in range(16)]  # point k: (x, y, z)
+    bu, bv, du, dv = (bu0, bu1, bu2, bu3), (bv0, bv1, bv2, bv3), (du0, du1, du2), (dv0, dv1, dv2)
+
+    def total(terms):
+        acc = np.zeros(3)
+        for a, b, diff in terms:
+            acc = acc + np.float64(a * b) * diff
+        return acc
+    su = total((du[i], bv[j], p[4 * j + i + 1] - p[4 * j + i]) for j in range(4) for i in range(3))
+    sv = total((bu[i], dv[j], p[4 * j + i + 4] - p[4 * j + i]) for j in range(3) for i in range(4))
+    suv = total((du[i], dv[j], p[4 * j + i + 5] - p[4 * j + i + 4] - p[4 * j + i + 1] + p[4 * j + i])
+                for j in range(3) for i in range(3))
+    work[1, :3] = 3.0 * su
+    work[2, :3] = 3.0 * sv
+    work[3, :3] = 9.0 * suv
+
 if config.DISABLE_JIT:
     split_u_cubic, split_v_cubic = split_u_cubic_python, split_v_cubic_python
     dist_range_cubic = dist_range_cubic_python
+    bicubic_tangents = bicubic_tangents_python
 else:
     split_u_cubic = intrinsic(_make_split(True))
     split_v_cubic = intrinsic(_make_split(False))
     dist_range_cubic = intrinsic(dist_range_cubic)
+    bicubic_tangents = intrinsic(bicubic_tangents)
 split_u_cubic.__doc__ = """Halve a bicubic in slot src at u = 1/2 (src keeps [0, 1/2], dst gets [1/2, 1]),
 writing both halves' control boxes into box[src], box[dst]."""
 split_v_cubic.__doc__ = """Halve a bicubic in slot src at v = 1/2, with both halves' boxes (see split_u_cubic)."""
