@@ -58,10 +58,10 @@ def tile_scratch(inputs, thread_cache=None) -> TileScratch:
                        bundle_rays(bundle, slots, stack_nodes))
 
 
-@njit(cache=True, nogil=True, _nrt=False)
-def write_pixel(out, y, x, ray, hit, counts, length, lv, trims, leaf_patch, rs):
-    """Pixel (y, x)'s kernel channels from its ray's hit record and counters (length: |direction|;
-    rs: records.RayScratch for the normal's evaluation)."""
+@njit(cache=True, nogil=True, inline='always')
+def _write_channels(out, y, x, ray, hit, counts, length, trims, leaf_patch):
+    """Pixel (y, x)'s kernel channels but its normal, from its ray's hit record and counters
+    (length: |direction|); a miss's normal too."""
     out.effort[y, x] = counts[C_EFFORT]
     out.nodes[y, x] = counts[C_NODES]
     out.patches_tested[y, x] = counts[C_PATCHES]
@@ -99,10 +99,38 @@ def write_pixel(out, y, x, ray, hit, counts, length, lv, trims, leaf_patch, rs):
     domain = trims.domain
     out.uv[y, x, 0] = domain[p, 0] + hit[H_U] * (domain[p, 1] - domain[p, 0])
     out.uv[y, x, 1] = domain[p, 2] + hit[H_V] * (domain[p, 3] - domain[p, 2])
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _write_normal(out, y, x, ray, hit, lv, rs):
+    """A hit pixel's normal channel (rs: records.RayScratch for the normal's evaluation)."""
     hit_normal(hit, lv.ctrl, lv.pstart, lv.deg_u, lv.deg_v, lv.rational, ray, rs.pts, rs.scratch, rs.work,
                rs.normal)
     for c in range(3):
         out.normal[y, x, c] = rs.normal[c]
+
+
+@njit(cache=True, nogil=True, _nrt=False)
+def write_pixel(out, y, x, ray, hit, counts, length, lv, trims, leaf_patch, rs):
+    """Pixel (y, x)'s kernel channels from its ray's hit record and counters (length: |direction|;
+    rs: records.RayScratch for the normal's evaluation)."""
+    _write_channels(out, y, x, ray, hit, counts, length, trims, leaf_patch)
+    if hit[H_TIN] != math.inf:
+        _write_normal(out, y, x, ray, hit, lv, rs)
+
+
+@njit(cache=True, nogil=True, _nrt=False)
+def write_rays(out, pixels, first, count, rays, hits, counts, lengths, lv, trims, leaf_patch, rs):
+    """write_pixel for rays[:count] (hits, counts and lengths likewise) into pixels[first:first +
+    count]: every pixel's channels but the normal, then the hits' normals in a loop of their own
+    (measured: 12-14 % of a 512x512 teapot frame without subdivision faster than pixel by pixel, as
+    the two loops keep their code and registers apart)."""
+    for j in range(count):
+        _write_channels(out, pixels[first + j, 0], pixels[first + j, 1], rays[j], hits[j], counts[j], lengths[j],
+                        trims, leaf_patch)
+    for j in range(count):
+        if hits[j, H_TIN] != math.inf:
+            _write_normal(out, pixels[first + j, 0], pixels[first + j, 1], rays[j], hits[j], lv, rs)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -152,9 +180,8 @@ def _render_bundles(pixels, blocks, origins, dirs, scene, q, slope, leaf_patch, 
             br.lengths[j] = start_ray(br.rays[j], br.hits[j], br.counts[j], origins, dirs, y, x, slope, q)
             active |= ONE << np.uint64(j)
         walk(agg, lv, trims, q, sl, br, active)  # noqa: F821
-        for j in range(blocks[b + 1] - first):
-            write_pixel(out, pixels[first + j, 0], pixels[first + j, 1], br.rays[j], br.hits[j], br.counts[j],
-                        br.lengths[j], lv, trims, leaf_patch, rs)
+        write_rays(out, pixels, first, blocks[b + 1] - first, br.rays, br.hits, br.counts, br.lengths, lv, trims,
+                   leaf_patch, rs)
 
 
 def _walk_of(variant):
