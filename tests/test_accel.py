@@ -378,3 +378,23 @@ def test_the_variant_and_the_pixel_inspector_follow_the_structure():
     for y, x in np.argwhere(frame.hit)[::97]:
         tr = trace_pixel(scene, opts, int(x), int(y), size=SIZE, geometry=geom)
         assert tr.hit and tr.patch == frame.patch[y, x] and np.array_equal(tr.box_min, frame.box_min[y, x])
+
+
+@pytest.mark.parametrize("module", ["accel", "penumbra"])
+def test_a_geometry_collected_during_a_build_does_not_deadlock(module):
+    """A build holds the module's lock and allocates; the collector may free an earlier geometry
+    there, whose finalizer (_forget) takes the same lock on the same thread. Found as a bit dump
+    hanging for good in a kd-tree build."""
+    import threading
+
+    from tracer import penumbra
+    mod = {"accel": accel, "penumbra": penumbra}[module]
+
+    def build_while_collecting():
+        with mod._LOCK:
+            mod._forget(("a geometry", "collected", "meanwhile"))
+
+    worker = threading.Thread(target=build_while_collecting, daemon=True)
+    worker.start()
+    worker.join(timeout=30)
+    assert not worker.is_alive(), f"{module}._forget waited for the lock its own thread holds"

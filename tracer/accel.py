@@ -21,7 +21,9 @@ from .kdtree import build_kdtree
 KIND_NAMES = {"bvh": "BVH", "kdtree": "kd-tree", "grid": "grid"}
 
 _BUILT: dict = {}  # (id(geometry), kind, parameters) -> (weakref to the geometry, structure, report)
-_LOCK = threading.Lock()
+# Reentrant: a geometry collected while this thread holds the lock (a build allocates, and the
+# collector may run there) has its finalizer, _forget, take the lock again on the same thread.
+_LOCK = threading.RLock()
 
 
 class Aggregate(NamedTuple):

@@ -40,7 +40,9 @@ MARGIN = 2.0 ** -30  # relative growth beyond the lemma's (slab tests round at 2
 LIT, PENUMBRA, UMBRA, UNCLASSIFIED = 0, 1, 2, -1
 
 _BUILT: dict = {}
-_LOCK = threading.Lock()
+# Reentrant: a geometry collected while this thread holds the lock (a build allocates, and the
+# collector may run there) has its finalizer, _forget, take the lock again on the same thread.
+_LOCK = threading.RLock()
 
 
 def scene_box(geom) -> np.ndarray:
