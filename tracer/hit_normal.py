@@ -7,7 +7,7 @@ import numpy as np
 
 from .jit import njit
 
-from .bezier import normal_at, normal_from
+from .bezier import _bernstein_row, normal_at, normal_from
 from .simd import bicubic_tangents
 from .ray import H_PATCH, H_U, H_V, R_D
 
@@ -23,7 +23,7 @@ def hit_normal(hit, ctrl, pstart, deg_u, deg_v, rational, ray, pts, scratch, wor
     u = hit[H_U]
     v = hit[H_V]
     if m == 3 and n == 3 and rational[p] == 0:
-        found = _bicubic_normal(ctrl, start, u, v, work, out)
+        found = _bicubic_normal(ctrl, start, u, v, scratch, work, out)
     elif m == 1 and n == 1 and rational[p] == 0:
         found = _bilinear_normal(ctrl, start, u, v, work, out)
     else:
@@ -44,36 +44,17 @@ def hit_normal(hit, ctrl, pstart, deg_u, deg_v, rational, ray, pts, scratch, wor
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _row3(t):
-    """bezier._bernstein_row(3, t), its recurrence written out: the same operations in its order."""
-    s = 1.0 - t
-    a0 = 0.0 + s * 1.0
-    a1 = t * 1.0
-    b0 = 0.0 + s * a0
-    b1 = t * a0 + s * a1
-    b2 = t * a1
-    return 0.0 + s * b0, t * b0 + s * b1, t * b1 + s * b2, t * b2
-
-
-@njit(cache=True, nogil=True, inline='always')
-def _row2(t):
-    """bezier._bernstein_row(2, t), written out as _row3."""
-    s = 1.0 - t
-    a0 = 0.0 + s * 1.0
-    a1 = t * 1.0
-    return 0.0 + s * a0, t * a0 + s * a1, t * a1
-
-
-@njit(cache=True, nogil=True, inline='always')
-def _bicubic_normal(ctrl, start, u, v, work, out):
-    """normal_at for an integral bicubic leaf, bit for bit: the Bernstein rows written out, the
-    tangents with the three coordinates side by side (simd.bicubic_tangents), neither the point
-    itself nor its weight computed."""
-    bu0, bu1, bu2, bu3 = _row3(u)
-    bv0, bv1, bv2, bv3 = _row3(v)
-    du0, du1, du2 = _row2(u)
-    dv0, dv1, dv2 = _row2(v)
-    bicubic_tangents(ctrl, start, bu0, bu1, bu2, bu3, bv0, bv1, bv2, bv3, du0, du1, du2, dv0, dv1, dv2, work)
+def _bicubic_normal(ctrl, start, u, v, scratch, work, out):
+    """normal_at for an integral bicubic leaf, bit for bit: evaluate's Bernstein rows, the tangents
+    with the three coordinates side by side (simd.bicubic_tangents), neither the point itself nor
+    its weight computed."""
+    bu, bv, du, dv = scratch[0], scratch[1], scratch[2], scratch[3]
+    _bernstein_row(np.int64(3), u, bu)
+    _bernstein_row(np.int64(3), v, bv)
+    _bernstein_row(np.int64(2), u, du)
+    _bernstein_row(np.int64(2), v, dv)
+    bicubic_tangents(ctrl, start, bu[0], bu[1], bu[2], bu[3], bv[0], bv[1], bv[2], bv[3], du[0], du[1], du[2], dv[0],
+                     dv[1], dv[2], work)
     return normal_from(work, u, v, False, out)
 
 
