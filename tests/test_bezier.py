@@ -595,3 +595,50 @@ def test_slab_t_min_clamps_entry():
     assert ok and t_in == 1.5 and t_out >= 2.0
     ok, _, _ = kernel_slab(bx, (-1.0, 0.5, 0.5), (1.0, 0.0, 0.0), t_min=2.5)
     assert not ok
+
+
+@functools.lru_cache(maxsize=None)
+def _restrict_lines_kernel():
+    """The scalar reference: bezier._restrict_line on each row in u, then on each column in v."""
+    from numba import njit
+
+    @njit(cache=True)
+    def lines(pts, ncoord, u0, u1, v0, v1):
+        for c in range(ncoord):
+            for j in range(4):
+                bezier._restrict_line(pts, c, 4 * j, 1, 3, u0, u1)
+            for i in range(4):
+                bezier._restrict_line(pts, c, i, 4, 3, v0, v1)
+    return lines
+
+
+@pytest.mark.interpreted
+def test_bicubic_restrict_is_the_scalar_lines_bit_for_bit():
+    """A bicubic's restriction four lines at a time (simd.restrict_cubic) rounds as the scalar
+    lines do, with either end of an interval at 0 or 1 (a stage left out) and ncoord 3 or 4."""
+    rng = np.random.default_rng(91)
+    for case in range(300):
+        pts = rng.standard_normal((4, 16)) * 10.0 ** rng.uniform(-6, 6)
+        u0, u1 = np.sort(rng.uniform(0, 1, 2))
+        v0, v1 = np.sort(rng.uniform(0, 1, 2))
+        if case % 5 == 1:
+            u0, v1 = 0.0, 1.0
+        elif case % 5 == 2:
+            u1, v0 = 1.0, 0.0
+        elif case % 5 == 3:
+            u0, u1, v0, v1 = 0.0, 1.0, 0.0, 1.0
+        ncoord = 3 + case % 2
+        want, got = pts.copy(), pts.copy()
+        _restrict_lines_kernel()(want, ncoord, u0, u1, v0, v1)
+        _bicubic_restrict_kernel()(got, ncoord, u0, u1, v0, v1)
+        assert got.tobytes() == want.tobytes(), f"case {case}"
+
+
+@functools.lru_cache(maxsize=None)
+def _bicubic_restrict_kernel():
+    from numba import njit
+
+    @njit(cache=True)
+    def restrict_bicubic(pts, ncoord, u0, u1, v0, v1):
+        bezier.restrict(pts, 3, 3, ncoord, u0, u1, v0, v1)
+    return restrict_bicubic

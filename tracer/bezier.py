@@ -163,46 +163,13 @@ def _restrict_line(pts, c, first, step, deg, t0, t1):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _casteljau3(p0, p1, p2, p3, t):
-    """de Casteljau's triangle of one cubic at t: (a0, a2, b0, b1, c0) of levels 1, 2, 3."""
-    a0 = p0 + t * (p1 - p0)
-    a1 = p1 + t * (p2 - p1)
-    a2 = p2 + t * (p3 - p2)
-    b0 = a0 + t * (a1 - a0)
-    b1 = a1 + t * (a2 - a1)
-    return a0, a2, b0, b1, b0 + t * (b1 - b0)
-
-
-@njit(cache=True, nogil=True, inline='always')
-def _restrict_cubic_line(pts, c, first, step, t0, t1):
-    """_restrict_line for degree 3, unrolled (the same lerps in the same order)."""
-    p0 = pts[c, first]
-    p1 = pts[c, first + step]
-    p2 = pts[c, first + 2 * step]
-    p3 = pts[c, first + 3 * step]
-    if t0 > 0.0:  # the right part at t0
-        _, a2, _, b1, c0 = _casteljau3(p0, p1, p2, p3, t0)
-        p0, p1, p2 = c0, b1, a2
-    if t1 < 1.0:  # the left part at t
-        a0, _, b0, _, c0 = _casteljau3(p0, p1, p2, p3, (t1 - t0) / (1.0 - t0))
-        p1, p2, p3 = a0, b0, c0
-    pts[c, first] = p0
-    pts[c, first + step] = p1
-    pts[c, first + 2 * step] = p2
-    pts[c, first + 3 * step] = p3
-
-
-@njit(cache=True, nogil=True, inline='always')
 def restrict(pts, m, n, ncoord, u0, u1, v0, v1):
     """Control points of the sub-patch [u0, u1] x [v0, v1] of the patch in pts (ncoord, points),
     in place (float64: a handful of roundings per point, see restrict_err)."""
     stride = m + 1
-    if m == 3 and n == 3:
+    if m == 3 and n == 3:  # _restrict_line's lerps, four lines at a time (simd.restrict_cubic)
         for c in range(ncoord):
-            for j in range(4):
-                _restrict_cubic_line(pts, c, 4 * j, 1, u0, u1)
-            for i in range(4):
-                _restrict_cubic_line(pts, c, i, 4, v0, v1)
+            simd.restrict_cubic(pts, c, u0, u1, v0, v1)
         return
     for c in range(ncoord):
         for j in range(n + 1):

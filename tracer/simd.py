@@ -135,6 +135,64 @@ def _make_split(along_u: bool):
     return split
 
 
+def _casteljau3(builder, p, t):
+    """de Casteljau's triangle of four cubics at t, lane by lane: each lerp a + t (b - a), as
+    bezier._restrict_line forms it; returns (a0, a2, b0, b1, c0) of levels 1, 2 and 3."""
+    def lerp(a, b):
+        return builder.fadd(a, builder.fmul(t, builder.fsub(b, a)))
+    a0, a1, a2 = lerp(p[0], p[1]), lerp(p[1], p[2]), lerp(p[2], p[3])
+    b0, b1 = lerp(a0, a1), lerp(a1, a2)
+    return a0, a2, b0, b1, lerp(b0, b1)
+
+
+def _restrict4(builder, p, t0, t1):
+    """bezier._restrict_line for four cubics at once (vector i holds their points i): the right
+    part at t0 where t0 > 0, then the left part at (t1 - t0) / (1 - t0) where t1 < 1 (both formed,
+    the scalar test selecting)."""
+    double = ir.DoubleType()
+    vec = ir.VectorType(double, 4)
+
+    def splat(x):
+        lane = builder.insert_element(ir.Constant(vec, ir.Undefined), x, ir.IntType(32)(0))
+        return _shuffle(builder, lane, lane, [0] * 4)
+
+    _, a2, _, b1, c0 = _casteljau3(builder, p, splat(t0))
+    right = builder.fcmp_ordered('>', t0, ir.Constant(double, 0.0))
+    p = [builder.select(right, c0, p[0]), builder.select(right, b1, p[1]), builder.select(right, a2, p[2]), p[3]]
+    one = ir.Constant(double, 1.0)
+    t = builder.fdiv(builder.fsub(t1, t0), builder.fsub(one, t0))
+    a0, _, b0, _, c0 = _casteljau3(builder, p, splat(t))
+    left = builder.fcmp_ordered('<', t1, one)
+    return [p[0], builder.select(left, a0, p[1]), builder.select(left, b0, p[2]), builder.select(left, c0, p[3])]
+
+
+def restrict_cubic(typingctx, pts, c, u0, u1, v0, v1):
+    """Coordinate c of the bicubic in pts (float64, points k = 4 j + i along the last axis)
+    restricted to [u0, u1] x [v0, v1] in place: bezier.restrict's lines, four at a time."""
+    if not (isinstance(pts, types.Array) and pts.ndim == 2 and pts.layout == 'C' and pts.dtype == types.float64):
+        return None
+    sig = types.void(pts, c, types.float64, types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        pts_ty, c_ty = signature.args[:2]
+        pts_v, c_v, u0, u1, v0, v1 = args
+        arr = context.make_array(pts_ty)(context, builder, pts_v)
+        first = cgutils.get_item_pointer2(context, builder, arr.data, cgutils.unpack_tuple(builder, arr.shape),
+                                          cgutils.unpack_tuple(builder, arr.strides), pts_ty.layout,
+                                          [context.cast(builder, c_v, c_ty, types.intp),
+                                           context.get_constant(types.intp, 0)])
+        base = builder.bitcast(first, ir.VectorType(ir.DoubleType(), 4).as_pointer())
+        ptrs = [builder.gep(base, [ir.IntType(64)(j)]) for j in range(4)]
+        rows = [builder.load(ptr, align=8) for ptr in ptrs]  # row j: the points (i, j)
+        columns = _restrict4(builder, _transpose(builder, rows), u0, u1)  # the rows' lines in u
+        rows = _restrict4(builder, _transpose(builder, columns), v0, v1)  # the columns' lines in v
+        for ptr, value in zip(ptrs, rows):
+            builder.store(value, ptr, align=8)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
 def _reduce_lanes(builder, op, vector, lanes):
     """op over the `lanes` lanes of one vector, halving it each time, as a scalar."""
     while lanes > 1:
@@ -307,6 +365,26 @@ split_u_cubic_python = _make_split_python(True)
 split_v_cubic_python = _make_split_python(False)
 
 
+def _restrict4_python(p, t0, t1):
+    def triangle(p, t):
+        a0, a1, a2 = p[0] + t * (p[1] - p[0]), p[1] + t * (p[2] - p[1]), p[2] + t * (p[3] - p[2])
+        b0, b1 = a0 + t * (a1 - a0), a1 + t * (a2 - a1)
+        return a0, a2, b0, b1, b0 + t * (b1 - b0)
+    if t0 > 0.0:
+        _, a2, _, b1, c0 = triangle(p, t0)
+        p = [c0, b1, a2, p[3]]
+    if t1 < 1.0:
+        a0, _, b0, _, c0 = triangle(p, (t1 - t0) / (1.0 - t0))
+        p = [p[0], a0, b0, c0]
+    return np.array(p)
+
+
+def restrict_cubic_python(pts, c, u0, u1, v0, v1):
+    rows = pts[c, :16].reshape(4, 4)
+    columns = _restrict4_python(rows.T.copy(), u0, u1)
+    pts[c, :16] = _restrict4_python(columns.T.copy(), v0, v1).reshape(16)
+
+
 def dist_range_cubic_python(buf, s, n0, n1, n2):
     rows = buf[s, :3, :16].astype(np.float64)
     dist = rows[0] * n0 + rows[1] * n1 + rows[2] * n2
@@ -336,11 +414,13 @@ if config.DISABLE_JIT:
     split_u_cubic, split_v_cubic = split_u_cubic_python, split_v_cubic_python
     dist_range_cubic = dist_range_cubic_python
     bicubic_tangents = bicubic_tangents_python
+    restrict_cubic = restrict_cubic_python
 else:
     split_u_cubic = intrinsic(_make_split(True))
     split_v_cubic = intrinsic(_make_split(False))
     dist_range_cubic = intrinsic(dist_range_cubic)
     bicubic_tangents = intrinsic(bicubic_tangents)
+    restrict_cubic = intrinsic(restrict_cubic)
 split_u_cubic.__doc__ = """Halve a bicubic in slot src at u = 1/2 (src keeps [0, 1/2], dst gets [1/2, 1]),
 writing both halves' control boxes into box[src], box[dst]."""
 split_v_cubic.__doc__ = """Halve a bicubic in slot src at v = 1/2, with both halves' boxes (see split_u_cubic)."""

@@ -19,6 +19,7 @@ import math
 import numpy as np
 from .jit import njit
 
+from .binary import pow2, ulp
 from .bezier import (control_box, control_box_rational, restrict, restrict_err, split_u, split_u_cubic,
                      split_u_linear, split_v, split_v_cubic, split_v_linear)
 from .ray import R_D, R_N1, R_N2, R_O, R_SIDE, slab
@@ -73,15 +74,9 @@ def patch_info(lv, p, bits, has_rational, has_cubic, has_linear):
                      has_cubic and m == 3 and n == 3 and not rational,
                      has_linear and m == 1 and n == 1 and not rational,
                      bits, cumulative,
-                     0.0 if cumulative else math.ldexp(1.0, SUB_ERR_BITS - bits),
-                     math.ldexp(1.0, -bits) if cumulative else 0.0,
-                     1.0 - math.ldexp(1.0, 4 - bits))  # a real decrease: more than 16 ulps
-
-
-@njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
-def ulp(x, bits):
-    """Spacing of `bits`-bit floats at |x| (x != 0)."""
-    return math.ldexp(1.0, math.frexp(x)[1] - bits)
+                     0.0 if cumulative else pow2(SUB_ERR_BITS - bits),
+                     pow2(-bits) if cumulative else 0.0,
+                     1.0 - pow2(4 - bits))  # a real decrease: more than 16 ulps
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
@@ -180,7 +175,7 @@ def recentre(sl, s, pa):
         shift = _to_working(0.5 * (box[s, c] + box[s, 3 + c]), pa.bits)
         offset = mf[s, M_OX + c]
         if offset != 0.0:  # a multiple of the offset's float64 ulp: offset + shift stays exact
-            q = math.ldexp(1.0, math.frexp(offset)[1] - 53)
+            q = ulp(offset, 53)
             shift = math.floor(shift / q + 0.5) * q
         if pa.rational:
             for k in range(count):  # w x - shift w
