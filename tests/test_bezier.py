@@ -599,26 +599,30 @@ def test_slab_t_min_clamps_entry():
 
 @functools.lru_cache(maxsize=None)
 def _restrict_lines_kernel():
-    """The scalar reference: bezier._restrict_line on each row in u, then on each column in v."""
+    """The scalar reference: bezier._restrict_line on each row in u, then on each column in v,
+    the degrees run-time values (the general loops)."""
     from numba import njit
 
     @njit(cache=True)
-    def lines(pts, ncoord, u0, u1, v0, v1):
+    def lines(pts, m, n, ncoord, u0, u1, v0, v1):
         for c in range(ncoord):
-            for j in range(4):
-                bezier._restrict_line(pts, c, 4 * j, 1, 3, u0, u1)
-            for i in range(4):
-                bezier._restrict_line(pts, c, i, 4, 3, v0, v1)
+            for j in range(n + 1):
+                bezier._restrict_line(pts, c, j * (m + 1), 1, m, u0, u1)
+            for i in range(m + 1):
+                bezier._restrict_line(pts, c, i, m + 1, n, v0, v1)
     return lines
 
 
 @pytest.mark.interpreted
-def test_bicubic_restrict_is_the_scalar_lines_bit_for_bit():
-    """A bicubic's restriction four lines at a time (simd.restrict_cubic) rounds as the scalar
-    lines do, with either end of an interval at 0 or 1 (a stage left out) and ncoord 3 or 4."""
-    rng = np.random.default_rng(91)
+@pytest.mark.parametrize("degree", [3, 1])
+def test_restrict_special_cases_are_the_general_lines_bit_for_bit(degree):
+    """restrict's bicubic case (four lines at a time, simd.restrict_cubic) and bilinear case
+    (unrolled) round as the general lines do, with either end of an interval at 0 or 1 (a stage
+    left out) and ncoord 3 or 4."""
+    rng = np.random.default_rng(91 + degree)
+    count = (degree + 1) ** 2
     for case in range(300):
-        pts = rng.standard_normal((4, 16)) * 10.0 ** rng.uniform(-6, 6)
+        pts = rng.standard_normal((4, count)) * 10.0 ** rng.uniform(-6, 6)
         u0, u1 = np.sort(rng.uniform(0, 1, 2))
         v0, v1 = np.sort(rng.uniform(0, 1, 2))
         if case % 5 == 1:
@@ -629,16 +633,16 @@ def test_bicubic_restrict_is_the_scalar_lines_bit_for_bit():
             u0, u1, v0, v1 = 0.0, 1.0, 0.0, 1.0
         ncoord = 3 + case % 2
         want, got = pts.copy(), pts.copy()
-        _restrict_lines_kernel()(want, ncoord, u0, u1, v0, v1)
-        _bicubic_restrict_kernel()(got, ncoord, u0, u1, v0, v1)
+        _restrict_lines_kernel()(want, degree, degree, ncoord, u0, u1, v0, v1)
+        _restrict_n_kernel()(got, degree, degree, ncoord, u0, u1, v0, v1)
         assert got.tobytes() == want.tobytes(), f"case {case}"
 
 
 @functools.lru_cache(maxsize=None)
-def _bicubic_restrict_kernel():
+def _restrict_n_kernel():
     from numba import njit
 
     @njit(cache=True)
-    def restrict_bicubic(pts, ncoord, u0, u1, v0, v1):
-        bezier.restrict(pts, 3, 3, ncoord, u0, u1, v0, v1)
-    return restrict_bicubic
+    def restrict_n(pts, m, n, ncoord, u0, u1, v0, v1):
+        bezier.restrict(pts, m, n, ncoord, u0, u1, v0, v1)
+    return restrict_n

@@ -171,6 +171,13 @@ def restrict(pts, m, n, ncoord, u0, u1, v0, v1):
         for c in range(ncoord):
             simd.restrict_cubic(pts, c, u0, u1, v0, v1)
         return
+    if m == 1 and n == 1:  # the lines below with their degree a constant: unrolled (a floor's leaves)
+        for c in range(ncoord):
+            for j in range(2):
+                _restrict_line(pts, c, 2 * j, 1, 1, u0, u1)
+            for i in range(2):
+                _restrict_line(pts, c, i, 2, 1, v0, v1)
+        return
     for c in range(ncoord):
         for j in range(n + 1):
             _restrict_line(pts, c, j * stride, 1, m, u0, u1)
