@@ -112,7 +112,9 @@ def widen(sl, s, sub_scale):
     sub = mag * sub_scale
     widening = 0.0
     for c in range(3):
-        e = mf[s, M_E + c] + sub
+        # sub_scale 0: sub is +0 (mag is finite: limits.py bounds float32 scenes), and the bound
+        # need not wait for mag's chain of maxima (a branch, predicted per patch, not a select)
+        e = mf[s, M_E + c] if sub_scale == 0.0 else mf[s, M_E + c] + sub
         box[s, c] -= e
         box[s, 3 + c] += e
         widening += 2.0 * e
