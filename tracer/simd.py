@@ -1,5 +1,5 @@
-"""The bicubic de Casteljau split in 4-wide vectors, the bicubic hull's extent across a plane in
-16-wide ones, and a bicubic's tangents (LLVM IR through numba intrinsics).
+"""The bicubic de Casteljau split and restriction in 4-wide vectors, the bicubic hull's extent across
+a plane in 16-wide ones, and a bicubic's tangents (LLVM IR through numba intrinsics).
 
 Numba compiles the scalar split to scalar instructions (it leaves LLVM's SLP vectoriser off),
 and a split is a third of the search. Here the 4 x 4 control points of one coordinate are four
@@ -14,6 +14,11 @@ and x n0 + y n1 + z n2 is formed lane by lane as the scalar loop forms it; the l
 value are exact (min and max do not round; which of two equal zeros comes out cannot matter
 to the test, which adds them to an offset and compares), a NaN skipped as the loop's min and max
 skip it.
+
+A bicubic's float64 restriction to a parameter rectangle (restrict_cubic, for subpatch.refine)
+runs bezier._restrict_line's lerps on four lines at once: the rows' points transposed into
+columns for the lines in u, back into rows for the lines in v; each of a line's two stages is
+always computed and kept where the scalar code's test (t0 > 0, t1 < 1) would have run it.
 
 The hit normal's tangents (bicubic_tangents) hold a point's x, y and z in the lanes of one
 vector: each lane sums its coordinate's terms in bezier.tangents' order, so the three sums are
