@@ -19,7 +19,7 @@ import tracer.drivers as drivers  # noqa: E402
 from tracer.bench_scenes import scene_label, scene_path  # noqa: E402
 from tracer.camera import primary_rays, view_of  # noqa: E402
 from tracer.geometry import prepare  # noqa: E402
-from tracer.options import Options  # noqa: E402
+from tracer.options import Options, parse_assignment  # noqa: E402
 from tracer.render import trace_rays  # noqa: E402
 from tracer.scene import load_scene  # noqa: E402
 from tracer.subpatch import M_D, M_TIN  # noqa: E402
@@ -34,11 +34,10 @@ def main(argv=None) -> None:
     ap.add_argument("--block", type=int, default=64)
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE")
     args = ap.parse_args(argv)
-    settings = {}
+    opts = Options()
     for pair in args.set:
-        key, _, value = pair.partition("=")
-        settings[key] = type(getattr(Options(), key))(value)
-    opts = Options().with_(threads=1, bundle="1x1", **settings)
+        opts = parse_assignment(opts, pair)  # as the CLI's --set: checked against the option's range
+    opts = opts.with_(threads=1, bundle="1x1")
     scene = load_scene(scene_path(args.scene))
     view = view_of(scene)
     geom = prepare(scene, opts.precision)

@@ -369,8 +369,8 @@ def _restrict_kernel():
     from numba import njit
 
     @njit(cache=False)
-    def run(pts, m, n, u0, u1, v0, v1):
-        bezier.restrict(pts, m, n, 3, u0, u1, v0, v1)
+    def run(pts, m, n, u0, u1, v0, v1, ncoord=3):
+        bezier.restrict(pts, m, n, ncoord, u0, u1, v0, v1)
     return run
 
 
@@ -634,15 +634,5 @@ def test_restrict_special_cases_are_the_general_lines_bit_for_bit(degree):
         ncoord = 3 + case % 2
         want, got = pts.copy(), pts.copy()
         _restrict_lines_kernel()(want, degree, degree, ncoord, u0, u1, v0, v1)
-        _restrict_n_kernel()(got, degree, degree, ncoord, u0, u1, v0, v1)
+        _restrict_kernel()(got, degree, degree, u0, u1, v0, v1, ncoord)
         assert got.tobytes() == want.tobytes(), f"case {case}"
-
-
-@functools.lru_cache(maxsize=None)
-def _restrict_n_kernel():
-    from numba import njit
-
-    @njit(cache=True)
-    def restrict_n(pts, m, n, ncoord, u0, u1, v0, v1):
-        bezier.restrict(pts, m, n, ncoord, u0, u1, v0, v1)
-    return restrict_n

@@ -370,24 +370,12 @@ split_u_cubic_python = _make_split_python(True)
 split_v_cubic_python = _make_split_python(False)
 
 
-def _restrict4_python(p, t0, t1):
-    def triangle(p, t):
-        a0, a1, a2 = p[0] + t * (p[1] - p[0]), p[1] + t * (p[2] - p[1]), p[2] + t * (p[3] - p[2])
-        b0, b1 = a0 + t * (a1 - a0), a1 + t * (a2 - a1)
-        return a0, a2, b0, b1, b0 + t * (b1 - b0)
-    if t0 > 0.0:
-        _, a2, _, b1, c0 = triangle(p, t0)
-        p = [c0, b1, a2, p[3]]
-    if t1 < 1.0:
-        a0, _, b0, _, c0 = triangle(p, (t1 - t0) / (1.0 - t0))
-        p = [p[0], a0, b0, c0]
-    return np.array(p)
-
-
 def restrict_cubic_python(pts, c, u0, u1, v0, v1):
-    rows = pts[c, :16].reshape(4, 4)
-    columns = _restrict4_python(rows.T.copy(), u0, u1)
-    pts[c, :16] = _restrict4_python(columns.T.copy(), v0, v1).reshape(16)
+    from .bezier import _restrict_line  # the scalar lines themselves (bezier imports this module)
+    for j in range(4):
+        _restrict_line(pts, c, 4 * j, 1, 3, u0, u1)
+    for i in range(4):
+        _restrict_line(pts, c, i, 4, 3, v0, v1)
 
 
 def dist_range_cubic_python(buf, s, n0, n1, n2):
