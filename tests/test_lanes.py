@@ -31,6 +31,8 @@ def _compiled():
         ahead=njit(lambda tin, row, lanes, g, bits: L.ahead_lanes(tin, row, lanes, g, bits)),
         at_start=njit(lambda tin, row, lanes, g, bits: L.at_start_lanes(tin, row, lanes, g, bits)),
         nearest=njit(lambda tin, row, g, bits: L.nearest_lanes(tin, row, g, bits)),
+        within_detail=njit(lambda tin, row, lanes, g, bits, size: L.within_detail_lanes(tin, row, lanes, g, bits,
+                                                                                         size)),
         count=njit(lambda counts, column, g, bits, n: L.count_lanes(counts, column, g, bits, n)))
 
 
@@ -39,7 +41,7 @@ def _python():
         slab=lambda lanes, origin, g, c, tin, tout, row: L.slab_lanes_python(lanes, origin, g, *c, tin, tout, row),
         slab_no_out=lambda lanes, origin, g, c, tin, row: L.slab_lanes_python(lanes, origin, g, *c, tin, None, row),
         ahead=L.ahead_lanes_python, at_start=L.at_start_lanes_python, nearest=L.nearest_lanes_python,
-        count=L.count_lanes_python)
+        within_detail=L.within_detail_lanes_python, count=L.count_lanes_python)
 
 
 def _kinds():
@@ -154,6 +156,29 @@ def test_lane_prune_nearest_and_counts_are_the_mask_loops():
                 kind["count"](counts, 2, g, bits, 3)
                 assert list(counts[2, cols]) == [3 * m for m in member]
             assert not counts[:2].any()
+
+
+@pytest.mark.interpreted
+def test_within_detail_lanes_is_the_adaptive_criterions_scalar_test():
+    """size <= t0 + dt * t_in lane by lane (judge_known's threshold, product and sum unfused), at
+    sizes on, just below and just above each ray's threshold."""
+    rng = np.random.default_rng(73)
+    count = L.WIDTH * GROUPS
+    for case in range(40):
+        tin = rng.choice([0.0, -0.0, 1e-300, 0.37, 1.0 / 3.0, 2.5, 1e6], (2, count))
+        lanes = _lanes_of(_rays(rng, count), np.full(count, math.inf))
+        lanes[L.L_T0, :count] = rng.choice([0.0, 1e-7, 3e-4], count)
+        lanes[L.L_DT, :count] = rng.uniform(1e-5, 1e-2, count)
+        detail = [float(lanes[L.L_T0, r]) + float(lanes[L.L_DT, r]) * float(tin[1, r]) for r in range(count)]
+        for size in (detail[rng.integers(0, count)], np.nextafter(detail[0], 0.0), np.nextafter(detail[1], 1.0),
+                     0.0, math.inf):
+            for kind in _kinds():
+                for g in range(GROUPS):
+                    cols = range(L.WIDTH * g, L.WIDTH * g + L.WIDTH)
+                    bits = np.uint64(rng.integers(0, 256))
+                    member = [bool(int(bits) >> k & 1) for k in range(L.WIDTH)]
+                    got = kind["within_detail"](tin, 1, lanes, g, bits, float(size))
+                    assert int(got) == _bits(m and size <= detail[r] for m, r in zip(member, cols)), (case, g)
 
 
 @pytest.mark.interpreted

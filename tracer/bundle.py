@@ -12,9 +12,10 @@ bundle visits two halves both of its rays meet differs (the half nearer to the b
 ray first), which can change which of two boxes holding a crossing at the same t is reported.
 
 The bundle walks the BVH as one: a node stays on the stack while any of its rays meets it.
-The slab tests of nodes and sub-patch boxes, the prune by each ray's closest hit and the
-nearest entry go eight rays at a time (lanes.py: the rays' origins, directions and closest hits
-in columns, each lane the scalar test's operations), the rest ray by ray over the mask's bits.
+The slab tests of nodes and sub-patch boxes, the prune by each ray's closest hit, the nearest
+entry and the adaptive criterion's threshold go eight rays at a time (lanes.py: the rays'
+origins, directions, closest hits and thresholds in columns, each lane the scalar test's
+operations), the rest ray by ray over the mask's bits.
 Bundles serve primary rays, and shadow and reflected rays (shadow_bundles.py); they carry no box
 budget and record no trace.
 """
@@ -29,15 +30,16 @@ from .aggregate import BvhNodes  # noqa: F401 (the record the walk reads)
 from .drivers import WIDE_BITS, wide_leaves, wide_slots
 from .frustum import F_LEN, MIN_RAYS, at_least, bound_rays, misses_all
 from .jit import njit, specialise
-from .lanes import L_D, L_HIT, L_INV, L_LEN, L_O, L_PO, L_TMIN, WIDTH, ahead_lanes, at_start_lanes, count_lanes
-from .lanes import nearest_lanes, padded, slab_lanes
-from .ray import H_TIN, R_D, R_INV, RAY_LEN, R_O, R_TMIN
+from .lanes import L_D, L_DT, L_HIT, L_INV, L_LEN, L_O, L_PO, L_T0, L_TMIN, WIDTH, ahead_lanes, at_start_lanes
+from .lanes import count_lanes
+from .lanes import nearest_lanes, padded, slab_lanes, within_detail_lanes
+from .ray import H_TIN, R_D, R_DT, R_INV, RAY_LEN, R_O, R_T0, R_TMIN
 from .records import C_BOX_TESTS, C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES
-from .search_steps import ADAPTIVE, halve, hull_accepts, judge_known, near_and_far, report, root_at, tighten
-from .search_steps import trim_accepts, trim_state
-from .subpatch import (I_DEPTH, I_LAST, I_STALLED, M_DPAR, M_OX, M_TIN, M_TOUT, hull_behind, hull_hit, hull_off_plane,
-                       patch_info)
-from .subpatch import open_box, seam_plane
+from .search_steps import ADAPTIVE, GRID_PREFILTER, halve, hull_accepts, judge_known, near_and_far, report, root_at
+from .search_steps import tighten, trim_accepts, trim_state
+from .subpatch import (I_DEPTH, I_LAST, I_STALLED, M_D, M_DPAR, M_GULP, M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1,
+                       M_W, hull_behind, hull_hit, hull_off_plane, patch_info)
+from .subpatch import grid_l1, open_box, seam_plane
 from .surface_cache import S_DEPTH, S_FIRST, S_HITS, S_MISSES, copy_slot, take_pair, touch
 
 ONE = np.uint64(1)
@@ -217,6 +219,53 @@ def push_halves(sl, a, b, sp, pa, br, go, direction):
     return sp + 1, b, -1
 
 
+@njit(cache=True, nogil=True, inline='always')
+def _all_if(flag):
+    return ~ZERO if flag else ZERO
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _within_detail(br, row, m, size):
+    """The rays of m whose threshold of detail at their entry t into the box of `row` is at least
+    `size` (lanes.within_detail_lanes)."""
+    within = ZERO
+    for g in range(br.lanes.shape[1] // WIDTH):
+        bits = _group_bits(m, g)
+        if bits != ZERO:
+            within |= within_detail_lanes(br.tin, row, br.lanes, g, bits, size) << np.uint64(WIDTH * g)
+    return within
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _judge_detail(sl, a, pa, lv, q, br, row, live):
+    """search_steps.judge_known under the adaptive criterion for each ray of `live` in slot a
+    (its entry t in tin[row]), as masks: (the rays that stop, those that go on, the first of
+    those's criterion diameter and whether the box shrank for it). A ray needs the grid box's
+    diameter g where d is within its limit (the prefilter's, or its threshold); the box is then
+    judged by g for it, else by d."""
+    mf = sl.mf
+    d = mf[a, M_D]
+    need = _all_if(d <= GRID_PREFILTER * mf[a, M_GULP]) | _within_detail(br, row, live, d)
+    need &= live
+    g = -1.0
+    crit = ZERO
+    if need != ZERO:
+        g = grid_l1(sl, a, lv.grid, pa.p)
+        crit = _within_detail(br, row, need, g)  # d > the threshold where g is not needed
+    large = _all_if(d > 1.0625 * mf[a, M_W])
+    parent = mf[a, M_DPAR] * pa.shrink_factor
+    shrank = ((need & _all_if(g < parent)) | (~need & _all_if(d < parent))) & large
+    stop = crit
+    if sl.mi[a, I_DEPTH] >= q.max_depth or mf[a, M_U0] == mf[a, M_U1] or mf[a, M_V0] == mf[a, M_V1]:
+        stop = live  # the depth cap, or an interval that can no longer halve
+    if sl.mi[a, I_STALLED] == 1:  # stalled: a box that did not shrink again stops (a rational one
+        stop |= ~shrank & (need | _all_if(not pa.rational))  # only within its limit)
+    stop &= live
+    go = live & ~stop
+    first = bit(lowest_bit(go)) if go != ZERO else ZERO
+    return stop, go, g if (need & first) != ZERO else d, (shrank & first) != ZERO
+
+
 def _solo_search(sl, a, pa, lv, trims, q, br, r, base, free, nfree):
     """The rest of working slot a's subtree for ray r alone, the bundle's last ray in it: the
     single ray's steps (drivers._search) on the bundle's stack above position `base`, without a
@@ -325,33 +374,27 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
                 nfree = solo(sl, a, pa, lv, trims, q, br, r, sp, free, nfree)  # noqa: F821
                 br.lanes[L_HIT, r] = br.hits[r, H_TIN]
                 continue
-        go = ZERO
-        first_ray = 0
-        d_first = 0.0
-        shrank_first = False
+        # The criterion is judged once for the box where it reads no ray; under adaptive, for
+        # each ray (its threshold at its entry t), eight at a time.
+        if q.criterion == ADAPTIVE:
+            stop, go, d_first, shrank_first = _judge_detail(sl, a, pa, lv, q, br, row, live)
+            first_ray = lowest_bit(go) if go != ZERO else 0
+        else:
+            first_ray = lowest_bit(live)
+            stop_box, d_first, shrank_first, _ = judge_known(sl, a, pa, lv, br.lrays[first_ray], q, -1.0)
+            stop = live if stop_box else ZERO
+            go = live & ~stop
         kept = -1  # the box's trim verdict, once a ray needs it
-        # The criterion is judged once for the box, per ray only where it reads the ray (adaptive:
-        # its threshold at the ray's t), the box's grid diameter computed at most once.
-        per_ray = q.criterion == ADAPTIVE
-        stop, d_crit, shrank, g = False, 0.0, False, -1.0
-        if not per_ray:
-            stop, d_crit, shrank, g = judge_known(sl, a, pa, lv, br.lrays[lowest_bit(live)], q, g)
-        m = live
+        m = stop
         while m != ZERO:
             r = lowest_bit(m)
             m &= m - ONE
-            sl.mf[a, M_TIN] = br.tin[row, r]  # the steps read the ray's interval from the slot
-            sl.mf[a, M_TOUT] = br.tout[row, r]
-            if per_ray:
-                stop, d_crit, shrank, g = judge_known(sl, a, pa, lv, br.lrays[r], q, g)
-            if not stop:
-                if go == ZERO:
-                    first_ray, d_first, shrank_first = r, d_crit, shrank
-                go |= bit(r)
-            elif hull_accepts(sl, a, pa, br.lrays[r], q):
+            if hull_accepts(sl, a, pa, br.lrays[r], q):
                 if HAS_TRIMS and kept < 0:  # noqa: F821
                     kept = 1 if trim_accepts(sl, a, pa, trims) else 0
                 if kept != 0:
+                    sl.mf[a, M_TIN] = br.tin[row, r]  # report reads the ray's interval from the slot
+                    sl.mf[a, M_TOUT] = br.tout[row, r]
                     report(br.hits[r], sl, a, pa, lv)
                     br.lanes[L_HIT, r] = br.hits[r, H_TIN]
         if go == ZERO:
@@ -464,6 +507,8 @@ def _load_lanes(br, m):
             lanes[L_INV + c, r] = ray[R_INV + c]
         lanes[L_TMIN, r] = ray[R_TMIN]
         lanes[L_HIT, r] = br.hits[r, H_TIN]
+        lanes[L_T0, r] = ray[R_T0]
+        lanes[L_DT, r] = ray[R_DT]
 
 
 @njit(cache=True, nogil=True, inline='always')

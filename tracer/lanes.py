@@ -24,9 +24,10 @@ from .ray import T_SLACK
 
 WIDTH = 8
 # lanes rows: origin xyz, direction xyz, 1 / direction xyz, t_min, the ray's closest hit's entry t,
-# the origin in the frame of the patch being searched (bundle.lrays)
-L_O, L_D, L_INV, L_TMIN, L_HIT, L_PO = 0, 3, 6, 9, 10, 11
-L_LEN = 14
+# the origin in the frame of the patch being searched (bundle.lrays), the threshold of detail at t = 0
+# and its growth per unit t (ray.R_T0, R_DT: the adaptive criterion's)
+L_O, L_D, L_INV, L_TMIN, L_HIT, L_PO, L_T0, L_DT = 0, 3, 6, 9, 10, 11, 14, 15
+L_LEN = 16
 
 
 def padded(count: int) -> int:
@@ -164,6 +165,28 @@ at_start_lanes = _compare('<=', L_TMIN, """bits where the entry t (tin[row]) is 
 boxes holding a ray's origin, which bundle._slot_rays tests further.""")
 
 
+def within_detail_lanes(typingctx, tin, row, lanes, group, bits, size):
+    """bits (uint64, the group's rays) where `size` <= the ray's threshold of detail at its entry t
+    into the box of `row`, lanes[L_T0] + lanes[L_DT] * tin[row]: search_steps.judge_known's test,
+    its product and sum unfused."""
+    if not (_is_2d(lanes, types.float64) and _is_2d(tin, types.float64)):
+        return None
+    sig = types.uint64(tin, row, lanes, group, types.uint64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        tin_ty, row_ty, lanes_ty, group_ty = signature.args[:4]
+        tin_v, row_v, lanes_v, group_v, bits_v, size_v = args
+        v = _Lanes(context, builder)
+        g = v.index(group_v, group_ty)
+        t = v.load(tin_ty, tin_v, v.index(row_v, row_ty), g)
+        detail = builder.fadd(v.load(lanes_ty, lanes_v, L_T0, g),
+                              builder.fmul(v.load(lanes_ty, lanes_v, L_DT, g), t))
+        holds = builder.fcmp_ordered('<=', v.splat(size_v), detail)
+        return v.bits(builder.and_(holds, v.mask(bits_v)))
+
+    return sig, codegen
+
+
 def nearest_lanes(typingctx, tin, row, group, bits):
     """The least entry t (tin[row]) of the group's rays in bits (uint64); inf for none."""
     if not _is_2d(tin, types.float64):
@@ -257,6 +280,11 @@ def at_start_lanes_python(tin, row, lanes, group, bits):
     return _to_bits(_from_bits(bits) & (tin[row, cols] <= lanes[L_TMIN, cols]))
 
 
+def within_detail_lanes_python(tin, row, lanes, group, bits, size):
+    cols = _columns(group)
+    return _to_bits(_from_bits(bits) & (size <= lanes[L_T0, cols] + lanes[L_DT, cols] * tin[row, cols]))
+
+
 def nearest_lanes_python(tin, row, group, bits):
     t = np.where(_from_bits(bits), tin[row, _columns(group)], math.inf)
     return float(t.min())
@@ -269,6 +297,8 @@ def count_lanes_python(counts, column, group, bits, n):
 if config.DISABLE_JIT:
     slab_lanes, ahead_lanes, at_start_lanes = slab_lanes_python, ahead_lanes_python, at_start_lanes_python
     nearest_lanes, count_lanes = nearest_lanes_python, count_lanes_python
+    within_detail_lanes = within_detail_lanes_python
 else:
     slab_lanes, ahead_lanes, at_start_lanes = intrinsic(slab_lanes), intrinsic(ahead_lanes), intrinsic(at_start_lanes)
     nearest_lanes, count_lanes = intrinsic(nearest_lanes), intrinsic(count_lanes)
+    within_detail_lanes = intrinsic(within_detail_lanes)
