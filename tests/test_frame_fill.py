@@ -107,3 +107,41 @@ def test_bound_is_the_compiled_entry_point_of_exactly_those_types():
     assert bound(total, (ints[::2], scale)) is total  # another layout is another type
     plain = total.py_func
     assert bound(plain, (ints, scale)) is plain  # not a dispatcher
+
+
+def test_type_keys_part_whatever_numba_types_apart():
+    """Two values with one type_key have one numba type (entry_point relies on it: an entry point
+    does not check its arguments), over arrays of every layout, flag and rank, records, tuples and
+    scalars at the edges of int64."""
+    import collections
+
+    import numba
+
+    from tracer.variants import entry_point, type_key
+
+    Pair = collections.namedtuple("Pair", "a b")
+    base = np.zeros((3, 4))
+    frozen = base.copy()
+    frozen.flags.writeable = False
+    unaligned = np.frombuffer(bytearray(8 * 12 + 1), np.float64, 12, 1).reshape(3, 4)
+    arrays = [base, base[:, :2], base.T, base[0], base[:, 0], np.zeros((0, 2)), np.zeros((1, 1)), frozen, unaligned,
+              base.astype(np.float32), base.astype(np.int32), np.zeros((3, 4, 1)),
+              np.zeros(3, bool), np.zeros(5, np.uint64)]
+    scalars = [0, -1, 2 ** 63 - 1, 2 ** 63, True, False, 0.5, None, np.int32(1), np.float32(1.0), np.uint64(3)]
+    values = arrays + scalars + [(base, 1), (1, base), (base, base), (base.T, base), Pair(base, 1), Pair(1, base),
+                                 (Pair(base, 0.5), (frozen, None))]
+    for x in values:
+        for y in values:
+            if type_key(x) == type_key(y):
+                assert numba.typeof(x) == numba.typeof(y), (x, y)
+
+    @numba.njit
+    def first(a, b):
+        return a[0] + b
+
+    ints = np.arange(4, dtype=np.int32)
+    first(ints, 1)
+    call = entry_point(first, (ints, 1))
+    assert call is not first and call(ints, 2) == 2
+    assert entry_point(first, (np.arange(4), 1)) is first  # no overload of these types: the dispatcher
+    assert entry_point(first.py_func, (ints, 1)) is first.py_func

@@ -25,7 +25,7 @@ from .pixel_order import order_units, unit_count as order_unit_count
 from .records import Leaves, Query, Trims, no_trace
 from .tile_kernel import tile_scratch
 from .unit_loop import guided_groups, joined_pixels, run_units
-from .variants import bound, compiled, label, variant_for
+from .variants import compiled, entry_point, label, variant_for
 
 CONTRACT_NAMES = ("ray_origin", "ray_dir", "hit", "t", "position", "box_min", "box_max",
                   "normal", "uv", "patch", "effort")
@@ -334,7 +334,7 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
             mine[id(cache)] = tile_scratch(inputs, cache)
         return mine[id(cache)]
 
-    callers = {}  # id(scratch) -> the kernel's entry point for its argument types (variants.bound)
+    callers = {}  # id(scratch) -> the kernel's entry point for its argument types (variants.entry_point)
 
     def work(group):
         if cancel is not None and cancel.is_set():
@@ -344,11 +344,11 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
         try:
             scratch = scratch_for(cache)
             call = callers.get(id(scratch)) if _plain(pixels, blocks) else kernel
-            if call is None:  # the first call with this scratch: through the dispatcher, which types it
-                kernel(pixels, blocks, origins, dirs, *args, scratch)
-                callers[id(scratch)] = bound(kernel, (pixels, blocks, origins, dirs) + args + (scratch,))
-            else:
-                call(pixels, blocks, origins, dirs, *args, scratch)
+            if call is None:  # the first call with this scratch
+                call = entry_point(kernel, (pixels, blocks, origins, dirs) + args + (scratch,))
+                if call is not kernel:  # (the dispatcher: no overload takes these types yet)
+                    callers[id(scratch)] = call
+            call(pixels, blocks, origins, dirs, *args, scratch)
         finally:
             if cache is not None:
                 lent.put(cache)

@@ -108,6 +108,43 @@ def bound(kernel, args: tuple):
     return kernel if overload is None else overload.entry_point
 
 
+def type_key(value):
+    """A hashable key of `value`'s numba type, in microseconds: values numba types differently have
+    different keys (arrays by class, dtype, rank and the flags their layout, mutability and
+    alignment come from; tuples and records by class and fields; ints by whether int64 holds
+    them), where numba.typeof takes about 0.6 ms for the tile kernel's 94 arrays."""
+    if isinstance(value, np.ndarray):
+        f = value.flags
+        return (type(value), value.dtype, value.ndim, f.c_contiguous, f.f_contiguous, f.writeable, f.aligned)
+    if isinstance(value, tuple):
+        return (type(value),) + tuple(type_key(v) for v in value)
+    if value is None or isinstance(value, (bool, float)):
+        return type(value)
+    if isinstance(value, int) and -2 ** 63 <= value < 2 ** 63:
+        return int
+    if isinstance(value, np.generic):
+        return (type(value), value.dtype)
+    return numba.typeof(value)
+
+
+_ENTRIES: dict = {}  # (kernel, type_key of its arguments) -> the overload's entry point
+
+
+def entry_point(kernel, args: tuple):
+    """bound(kernel, args), remembered by the arguments' type_key: a render's first call in each
+    thread finds its entry point without numba's typing (0.6 ms a time, holding the interpreter
+    lock the other threads' calls wait on)."""
+    if getattr(kernel, "overloads", None) is None:
+        return kernel
+    key = (kernel, type_key(args))
+    entry = _ENTRIES.get(key)
+    if entry is None:
+        entry = bound(kernel, args)
+        if entry is not kernel:
+            _ENTRIES[key] = entry
+    return entry
+
+
 def compile_report() -> list:
     """[{kernel, variant, seconds, cached}] for every variant compiled in this process."""
     return [{"kernel": kind, "variant": label(v), "seconds": round(r["seconds"], 3), "cached": r["cached"]}
