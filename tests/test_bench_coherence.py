@@ -127,3 +127,16 @@ def test_the_frame_without_subdivision_is_judged_by_its_fastest_row_at_512():
     assert verdict(flat([0.09, 0.05], [512, 512]))[2] is False
     assert verdict(flat([0.01, 0.01], [64, 64]))[2] is None  # only the teapot at 512x512 is judged
     assert verdict(flat([0.01, 0.01], [512, 512], "flying"))[2] is None
+
+
+def test_a_figure_beside_its_target_never_reads_as_the_other_verdict():
+    def best(speedup):
+        rows = [{"table": "bundles", "label": f"float {b}", "times": [t], "time": t, "speedup": s, "stats": {}}
+                for b, t, s in (("1x1", 1.0, 1.0), ("8x8", 1.0 / speedup, speedup))]
+        (c,) = [c for c in checks({"size": [512, 512], "scenes": {"teapot": {"rows": rows}}}) if "float" in c[0]]
+        return c[1], c[3]
+
+    assert best(1.1996) == ("1.1996x", False)  # not "1.20x ... NOT met"
+    assert best(1.2) == ("1.20x", True)
+    assert best(1.2049) == ("1.20x", True) and best(1.0437) == ("1.04x", False)
+    assert best(1.19999999) == ("1.19999999x", False)
