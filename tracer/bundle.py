@@ -31,8 +31,7 @@ from .drivers import WIDE_BITS, wide_leaves, wide_slots
 from .frustum import F_LEN, MIN_RAYS, at_least, bound_rays, misses_all
 from .jit import njit, specialise
 from .lanes import L_D, L_DT, L_HIT, L_INV, L_LEN, L_O, L_PO, L_T0, L_TMIN, WIDTH, ahead_lanes, at_start_lanes
-from .lanes import count_lanes
-from .lanes import nearest_lanes, padded, slab_lanes, within_detail_lanes
+from .lanes import count_lanes, nearest_lanes, padded, slab_lanes, within_detail_lanes
 from .ray import H_TIN, R_D, R_DT, R_INV, RAY_LEN, R_O, R_T0, R_TMIN
 from .records import C_BOX_TESTS, C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES
 from .search_steps import ADAPTIVE, GRID_PREFILTER, halve, hull_accepts, judge_known, near_and_far, report, root_at
@@ -239,10 +238,10 @@ def _within_detail(br, row, m, size):
 @njit(cache=True, nogil=True, inline='always')
 def _judge_detail(sl, a, pa, lv, q, br, row, live):
     """search_steps.judge_known under the adaptive criterion for each ray of `live` in slot a
-    (its entry t in tin[row]), as masks: (the rays that stop, those that go on, the first of
-    those's criterion diameter and whether the box shrank for it). A ray needs the grid box's
-    diameter g where d is within its limit (the prefilter's, or its threshold); the box is then
-    judged by g for it, else by d."""
+    (its entry t in tin[row]), as masks: (the rays that stop, those that go on, and for the first
+    ray that goes on the box's criterion diameter and whether the box shrank by it). A ray needs
+    the grid box's diameter g where d is within its limit (the prefilter's, or its threshold);
+    the box is then judged by g for it, else by d."""
     mf = sl.mf
     d = mf[a, M_D]
     need = _all_if(d <= GRID_PREFILTER * mf[a, M_GULP]) | _within_detail(br, row, live, d)

@@ -346,7 +346,7 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
             call = callers.get(id(scratch)) if _plain(pixels, blocks) else kernel
             if call is None:  # the first call with this scratch
                 call = entry_point(kernel, (pixels, blocks, origins, dirs) + args + (scratch,))
-                if call is not kernel:  # (the dispatcher: no overload takes these types yet)
+                if call is not kernel:  # (kernel: no overload takes these types yet; it compiles one)
                     callers[id(scratch)] = call
             call(pixels, blocks, origins, dirs, *args, scratch)
         finally:
