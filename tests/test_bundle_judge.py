@@ -90,7 +90,7 @@ def test_judge_detail_is_judge_known_ray_by_ray():
             br.lanes[L.L_T0, r] = br.rays[r, R_T0]
             br.lanes[L.L_DT, r] = br.rays[r, R_DT]
         live = np.uint64(int(rng.integers(1, 1 << RAYS)))
-        stop, go, d_first, shrank_first = judge_rays(sl, pa, lv, q, br, row, live)
+        stop, go, first_ray, d_first, shrank_first = judge_rays(sl, pa, lv, q, br, row, live)
         assert int(stop) & int(go) == 0 and int(stop) | int(go) == int(live)
         first = None
         for r in range(RAYS):
@@ -102,5 +102,5 @@ def test_judge_detail_is_judge_known_ray_by_ray():
             seen.add((bool(want_stop), bool(want_shrank), want_d == g))
             if not want_stop and first is None:
                 first = r
-                assert d_first == want_d and shrank_first == want_shrank, (case, r)
+                assert first_ray == r and d_first == want_d and shrank_first == want_shrank, (case, r)
     assert len(seen) >= 6  # stops and goes, shrunk or not, judged by d or by g
