@@ -119,28 +119,21 @@ def _cached_search(p, lv, trims, ray, hit, q, sl, trace):
             continue
         effort += 2
         kid = -1
+        build = False
         if cached and sl.mi[a, I_DEPTH] < cache.state[S_DEPTH]:
             kid = cache.child[a - first]
-            if kid < 0:  # compute the halves once, from a working copy, and keep them
+            if kid < 0:  # compute the halves once, in working slots, and keep them
                 kid = take_pair(cache, p)
-                if kid >= 0:
-                    w = free[nfree - 1]
-                    b = free[nfree - 2]
-                    copy_slot(sl, a, w, ncoord, pa.count)
-                    tighten(sl, w, pa, lv)
-                    halve(sl, w, b, pa, lray, q, d_crit, shrank, HAS_GENERAL)  # noqa: F821
-                    copy_slot(sl, w, kid, ncoord, pa.count)
-                    copy_slot(sl, b, kid + 1, ncoord, pa.count)
-                    cache.child[a - first] = kid
-                    cache.child[kid - first] = -1
-                    cache.child[kid + 1 - first] = -1
-        if kid >= 0:  # the cached halves, with this ray's view of their parent
+                build = kid >= 0
+        if kid >= 0 and not build:  # the cached halves, with this ray's view of their parent
             for c in (kid, kid + 1):
                 mf[c, M_DPAR] = d_crit
                 sl.mi[c, I_STALLED] = 0 if shrank else 1
-            far, near, alive_far, alive_near = sort_halves(sl, kid, kid + 1, pa, lv, lray, hit[H_TIN],
-                                                           sl.mi[kid, I_LAST], trace, False)
+            a = kid
+            b = kid + 1
+            direction = sl.mi[kid, I_LAST]
         else:  # computed halves in working slots
+            node = a
             if cached:
                 nfree -= 1
                 w = free[nfree]
@@ -150,8 +143,21 @@ def _cached_search(p, lv, trims, ray, hit, q, sl, trace):
             nfree -= 1
             b = free[nfree]
             direction = halve(sl, a, b, pa, lray, q, d_crit, shrank, HAS_GENERAL)  # noqa: F821
-            far, near, alive_far, alive_near = sort_halves(sl, a, b, pa, lv, lray, hit[H_TIN], direction, trace,
-                                                           False)
+            if build:  # into the cache; the working slots go back
+                copy_slot(sl, a, kid, ncoord, pa.count)
+                copy_slot(sl, b, kid + 1, ncoord, pa.count)
+                cache.child[node - first] = kid
+                cache.child[kid - first] = -1
+                cache.child[kid + 1 - first] = -1
+                free[nfree] = b
+                free[nfree + 1] = a
+                nfree += 2
+                a = kid
+                b = kid + 1
+        # One inlined copy of the halving and of sort_halves for cached and computed halves: with
+        # a copy in each branch the teapot's float frame with the cache took 0.83 s, not 0.64 s.
+        far, near, alive_far, alive_near = sort_halves(sl, a, b, pa, lv, lray, hit[H_TIN], direction, trace, False)
+        if kid < 0:
             for c, alive in ((far, alive_far), (near, alive_near)):
                 if not alive:
                     free[nfree] = c
