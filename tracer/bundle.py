@@ -39,7 +39,7 @@ from .search_steps import tighten, trim_accepts, trim_state
 from .subpatch import (I_DEPTH, I_LAST, I_STALLED, M_D, M_DPAR, M_GULP, M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1,
                        M_W, hull_behind, hull_hit, hull_off_plane, patch_info)
 from .subpatch import grid_l1, open_box, seam_plane
-from .surface_cache import S_DEPTH, S_FIRST, S_HITS, S_MISSES, copy_slot, take_pair, touch
+from .surface_cache import S_DEPTH, S_FIRST, S_HITS, S_MISSES, copy_slot, keep_halves, take_pair, touch
 
 ONE = np.uint64(1)
 ZERO = np.uint64(0)
@@ -429,14 +429,7 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
             b = free[nfree]
             direction = halve(sl, a, b, pa, lr, q, d_first, shrank_first, HAS_GENERAL)  # noqa: F821
             if CACHED and build:  # noqa: F821 (into the cache; the working slots go back)
-                copy_slot(sl, a, kid, ncoord, pa.count)
-                copy_slot(sl, b, kid + 1, ncoord, pa.count)
-                cache.child[node - first] = kid
-                cache.child[kid - first] = -1
-                cache.child[kid + 1 - first] = -1
-                free[nfree] = b
-                free[nfree + 1] = a
-                nfree += 2
+                nfree = keep_halves(sl, cache, node, a, b, kid, ncoord, pa.count, free, nfree)
                 a = kid
                 b = kid + 1
         # One inlined copy of the halving and of push_halves for cached and computed halves (a

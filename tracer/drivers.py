@@ -21,7 +21,7 @@ from .records import Leaves, Slots
 from .search_steps import HIT, MISS, PRUNED, accept, enter_frame, halve, judge, open_child, report, root, root_at
 from .search_steps import set_event, sort_halves, subdivide, tighten, trace_hit, trim_state
 from .subpatch import I_DEPTH, I_LAST, I_STALLED, M_DPAR, M_TIN, patch_info
-from .surface_cache import S_DEPTH, S_FIRST, S_HITS, S_MISSES, copy_slot, take_pair, touch
+from .surface_cache import S_DEPTH, S_FIRST, S_HITS, S_MISSES, copy_slot, keep_halves, take_pair, touch
 
 WIDE_BITS = 53  # rational patches are searched in float64 slots whatever the working precision
 
@@ -144,14 +144,7 @@ def _cached_search(p, lv, trims, ray, hit, q, sl, trace):
             b = free[nfree]
             direction = halve(sl, a, b, pa, lray, q, d_crit, shrank, HAS_GENERAL)  # noqa: F821
             if build:  # into the cache; the working slots go back
-                copy_slot(sl, a, kid, ncoord, pa.count)
-                copy_slot(sl, b, kid + 1, ncoord, pa.count)
-                cache.child[node - first] = kid
-                cache.child[kid - first] = -1
-                cache.child[kid + 1 - first] = -1
-                free[nfree] = b
-                free[nfree + 1] = a
-                nfree += 2
+                nfree = keep_halves(sl, cache, node, a, b, kid, ncoord, pa.count, free, nfree)
                 a = kid
                 b = kid + 1
         # One inlined copy of the halving and of sort_halves for cached and computed halves: with

@@ -180,6 +180,21 @@ def copy_slot(sl, src, dst, ncoord, count):
         sl.mi[dst, k] = sl.mi[src, k]
 
 
+@njit(cache=True, nogil=True, inline='always')
+def keep_halves(sl, cache, node, a, b, kid, ncoord, count, free, nfree):
+    """The halves just computed in working slots a and b become cached node's children, the pair
+    kid, kid + 1; a and b go back to the free working slots (free[:nfree]). Returns their count."""
+    first = cache.state[S_FIRST]
+    copy_slot(sl, a, kid, ncoord, count)
+    copy_slot(sl, b, kid + 1, ncoord, count)
+    cache.child[node - first] = kid
+    cache.child[kid - first] = -1
+    cache.child[kid + 1 - first] = -1
+    free[nfree] = b
+    free[nfree + 1] = a
+    return nfree + 2
+
+
 class ThreadCache:
     """One render thread's cache: the sub-patch arrays (the working slots, then the nodes) and the
     record of the trees in them, kept from one kernel call to the next."""
