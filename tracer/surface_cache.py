@@ -34,8 +34,9 @@ from .jit import njit
 # root (n_leaves,) int32: the patch's cached root slot or -1; child (nodes,) int32: the first of
 # a node's two cached halves (slot) or -1; lru_prev, lru_next (n_leaves,) int32: the queue of
 # patches with a tree, least recently searched first; pairs_free (pairs,) int32: a stack of
-# free pair indices; evict (nodes + 2,) int32: the release walk's stack; stack (working,) int32:
-# the search's stack of slots; free_slots (working,) int32: working slots not in use; seen
+# free pair indices; evict (nodes + 2,) int32: the release walk's stack; stack (working,) uint32:
+# the search's stack of slots; free_slots (working,) uint32: working slots not in use (unsigned,
+# as bundle.py's: no negative-index fix-ups); seen
 # (n_leaves,) uint8: 1 for each patch searched since the renderer last cleared it (the surfaces a
 # frame searched, for its misses per surface); state int64: see S_*.
 CacheRecord = namedtuple("CacheRecord", "root child lru_prev lru_next pairs_free evict stack free_slots seen state")
@@ -77,7 +78,7 @@ def new_cache(n_leaves: int, working: int, pairs: int, depth: int) -> CacheRecor
     return CacheRecord(np.full(n_leaves, -1, np.int32), np.full(nodes, -1, np.int32),
                        np.full(n_leaves, -1, np.int32), np.full(n_leaves, -1, np.int32),
                        np.arange(pairs, dtype=np.int32)[::-1].copy(), np.zeros(nodes + 2, np.int32),
-                       np.zeros(working, np.int32), np.arange(working, dtype=np.int32),
+                       np.zeros(working, np.uint32), np.arange(working, dtype=np.uint32),
                        np.zeros(n_leaves, np.uint8), state)
 
 
