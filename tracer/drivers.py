@@ -131,7 +131,7 @@ def _cached_search(p, lv, trims, ray, hit, q, sl, trace):
             for c in (kid, kid + 1):
                 mf[c, M_DPAR] = d_crit
                 sl.mi[c, I_STALLED] = 0 if shrank else 1
-            a = np.uint32(kid)
+            a = np.uint32(kid)  # (unsigned, as the stack's slots)
             b = np.uint32(kid + 1)
             direction = sl.mi[kid, I_LAST]
         else:  # computed halves in working slots
