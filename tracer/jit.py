@@ -198,8 +198,7 @@ class _KernelCache(FunctionCache):
 
     def signatures(self, codegen) -> list:
         """The signatures this cache holds current machine code for."""
-        current = [key for key in self._cache_file._load_index() if key == self._index_key(key[0], codegen)]
-        return [key[0] for key in current]
+        return [key[0] for key in self._cache_file._load_index() if key == self._index_key(key[0], codegen)]
 
 
 def _separate_callees(func, seen: set):
