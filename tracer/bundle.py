@@ -11,9 +11,8 @@ still active decides for the bundle), tested by the same steps. Only the order i
 bundle visits two halves both of its rays meet differs (the half nearer to the bundle's nearest
 ray first), which can change which of two boxes holding a crossing at the same t is reported.
 
-The bundle walks the BVH as one: a node stays on the stack while any of its rays meets it.
-The slab tests of nodes and sub-patch boxes, the prune by each ray's closest hit, the nearest
-entry and the adaptive criterion's threshold go eight rays at a time (lanes.py: the rays'
+The bundle walks the BVH as one (bundle_walk.py). The slab tests of sub-patch boxes, the prune by
+each ray's closest hit, the nearest entry and the adaptive criterion's threshold go eight rays at a time (lanes.py: the rays'
 origins, directions, closest hits and thresholds in columns, each lane the scalar test's
 operations), the rest ray by ray over the mask's bits.
 Bundles serve primary rays, and shadow and reflected rays (shadow_bundles.py); they carry no box
@@ -26,14 +25,13 @@ from collections import namedtuple
 import numba
 import numpy as np
 
-from .aggregate import BvhNodes  # noqa: F401 (the record the walk reads)
 from .drivers import WIDE_BITS, wide_leaves, wide_slots
-from .frustum import F_LEN, MIN_RAYS, at_least, bound_rays, misses_all
+from .frustum import F_LEN
 from .jit import njit, specialise
-from .lanes import L_D, L_DT, L_HIT, L_INV, L_LEN, L_O, L_PO, L_T0, L_TMIN, WIDTH, ahead_lanes, at_start_lanes
+from .lanes import L_HIT, L_LEN, L_PO, WIDTH, ahead_lanes, at_start_lanes
 from .lanes import count_lanes, nearest_lanes, padded, slab_lanes, within_detail_lanes
-from .ray import H_TIN, R_D, R_DT, R_INV, RAY_LEN, R_O, R_T0, R_TMIN
-from .records import C_BOX_TESTS, C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES
+from .ray import H_TIN, RAY_LEN, R_O, R_TMIN
+from .records import C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT
 from .search_steps import ADAPTIVE, GRID_PREFILTER, halve, hull_accepts, judge_known, near_and_far, report, root_at
 from .search_steps import tighten, trim_accepts, trim_state
 from .subpatch import (I_DEPTH, I_LAST, I_STALLED, M_D, M_DPAR, M_GULP, M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1,
@@ -83,7 +81,7 @@ def bit(r):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _group_bits(m, g):
+def group_bits(m, g):
     """The rays of mask m in lanes group g, as the group's low bits."""
     return (m >> np.uint64(WIDTH * g)) & GROUP
 
@@ -132,7 +130,7 @@ def open_rays(sl, s, pa, br, row, m):
     rays that meet it before their own closest hit (and are not behind it: _slot_rays)."""
     alive = ZERO
     for g in range(br.lanes.shape[1] // WIDTH):
-        bits = _group_bits(m, g)
+        bits = group_bits(m, g)
         if bits != ZERO:
             alive |= _slot_rays(sl, s, pa, br, row, g, bits) << np.uint64(WIDTH * g)
     return alive
@@ -146,7 +144,7 @@ def open_pair(sl, a, b, pa, br, row_a, row_b, m):
     alive_a = ZERO
     alive_b = ZERO
     for g in range(br.lanes.shape[1] // WIDTH):
-        bits = _group_bits(m, g)
+        bits = group_bits(m, g)
         if bits != ZERO:
             shift = np.uint64(WIDTH * g)
             alive_a |= _slot_rays(sl, a, pa, br, row_a, g, bits) << shift
@@ -155,14 +153,30 @@ def open_pair(sl, a, b, pa, br, row_a, row_b, m):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _nearest_in(tin, br, row, m):
+def nearest_in(tin, br, row, m):
     """nearest for an interval row of tin (the sub-patch stack's or the walk's), from the lanes."""
     t = np.inf
     for g in range(br.lanes.shape[1] // WIDTH):
-        bits = _group_bits(m, g)
+        bits = group_bits(m, g)
         if bits != ZERO:
             t = min(t, nearest_lanes(tin, row, g, bits))
     return t
+
+
+@njit(cache=True, nogil=True, inline='always')
+def ahead_in(tin, br, row, m, count_nodes):
+    """The rays of m whose entry t into the box of `row` (tin[row, r]) lies before their own
+    closest hit: the others drop out of it (from the lanes). count_nodes: each live ray counts a
+    node (the walk's)."""
+    live = ZERO
+    for g in range(br.lanes.shape[1] // WIDTH):
+        bits = group_bits(m, g)
+        if bits != ZERO:
+            kept = ahead_lanes(tin, row, br.lanes, g, bits)
+            if count_nodes:
+                count_lanes(br.walk_counts, W_NODES, g, kept, 1)
+            live |= kept << np.uint64(WIDTH * g)
+    return live
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -202,7 +216,7 @@ def push_halves(sl, a, b, sp, pa, br, go, direction):
             else:
                 keep_b &= ~bit(r)
     if keep_a != ZERO and keep_b != ZERO:
-        if _nearest_in(br.tin, br, row_a, keep_a) <= _nearest_in(br.tin, br, row_b, keep_b):  # a nearer: a on top
+        if nearest_in(br.tin, br, row_a, keep_a) <= nearest_in(br.tin, br, row_b, keep_b):  # a nearer: a on top
             br.row[sp], br.row[sp + 1] = row_b, row_a
             a, b, keep_a, keep_b = b, a, keep_b, keep_a
         br.slot[sp], br.slot[sp + 1] = a, b
@@ -231,7 +245,7 @@ def _within_detail(br, row, m, size):
     `size` (lanes.within_detail_lanes)."""
     within = ZERO
     for g in range(br.lanes.shape[1] // WIDTH):
-        bits = _group_bits(m, g)
+        bits = group_bits(m, g)
         if bits != ZERO:
             within |= within_detail_lanes(br.tin, row, br.lanes, g, bits, size) << np.uint64(WIDTH * g)
     return within
@@ -362,7 +376,7 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
         a = br.slot[sp]
         cached = a >= first
         row = br.row[sp]
-        live = _ahead_in(br.tin, br, row, br.mask[sp], False)
+        live = ahead_in(br.tin, br, row, br.mask[sp], False)
         if live == ZERO or (HAS_TRIMS and trim_state(sl, a, pa, trims) < 0):  # noqa: F821
             if not cached:
                 free[nfree] = a
@@ -481,184 +495,6 @@ def make_bundle_search(variant, alone: bool = True):
                              HAS_GENERAL=True, solo=solo(True), **flags))
     dispatch = _rational_only if narrow is None else _by_kind
     return njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(dispatch, wide=wide, narrow=narrow))
-
-
-@njit(cache=True, nogil=True, inline='always')
-def _node_corners(node_box, node):
-    """A BVH node's box as slab_at takes it (slab's shift by NO_SHIFT, -0.0, leaves every corner as
-    it is)."""
-    box = node_box[node]
-    return box[0], box[1], box[2], box[3], box[4], box[5]
-
-
-@njit(cache=True, nogil=True, inline='always')
-def _load_lanes(br, m):
-    """The rays of m into the walk's lanes (lanes.py), and their counters there zeroed."""
-    lanes = br.lanes
-    wc = br.walk_counts
-    for k in range(wc.shape[0]):
-        for r in range(wc.shape[1]):
-            wc[k, r] = 0
-    while m != ZERO:
-        r = lowest_bit(m)
-        m &= m - ONE
-        ray = br.rays[r]
-        for c in range(3):
-            lanes[L_O + c, r] = ray[R_O + c]
-            lanes[L_D + c, r] = ray[R_D + c]
-            lanes[L_INV + c, r] = ray[R_INV + c]
-        lanes[L_TMIN, r] = ray[R_TMIN]
-        lanes[L_HIT, r] = br.hits[r, H_TIN]
-        lanes[L_T0, r] = ray[R_T0]
-        lanes[L_DT, r] = ray[R_DT]
-
-
-@njit(cache=True, nogil=True, inline='always')
-def _store_counts(br, m):
-    """The walk's counters, kept in lanes, added to the rays' own."""
-    wc = br.walk_counts
-    while m != ZERO:
-        r = lowest_bit(m)
-        m &= m - ONE
-        br.counts[r, C_BOX_TESTS] += wc[W_BOX_TESTS, r]
-        br.counts[r, C_SURFACES] += wc[W_SURFACES, r]
-        br.counts[r, C_NODES] += wc[W_NODES, r]
-        br.counts[r, C_PATCHES] += wc[W_PATCHES, r]
-
-
-@njit(cache=True, nogil=True, inline='always')
-def _count_walk(br, m, row, n):
-    """walk_counts[row, r] += n for every ray r of m."""
-    for g in range(br.lanes.shape[1] // WIDTH):
-        bits = _group_bits(m, g)
-        if bits != ZERO:
-            count_lanes(br.walk_counts, row, g, bits, n)
-
-
-@njit(cache=True, nogil=True, inline='always')
-def _node_rays(node_box, node, br, row, m):
-    """Slab-test a BVH node against the rays of m (intervals into node_tin[row]); the rays that
-    meet it before their own closest hit."""
-    alive = ZERO
-    lo0, lo1, lo2, hi0, hi1, hi2 = _node_corners(node_box, node)
-    for g in range(br.lanes.shape[1] // WIDTH):
-        bits = _group_bits(m, g)
-        if bits != ZERO:
-            met = slab_lanes(br.lanes, L_O, g, lo0, lo1, lo2, hi0, hi1, hi2, br.node_tin, None, row) & bits
-            alive |= met << np.uint64(WIDTH * g)
-    return alive
-
-
-@njit(cache=True, nogil=True, inline='always')
-def _children_rays(node_box, left, right, br, row_l, row_r, m, surfaces):
-    """Both children of a BVH node against the rays of m (intervals into node_tin[row_l] and
-    [row_r]), eight rays at a time, counting each ray's two box tests and the surfaces of the leaf
-    children among them; the rays of each child. With enough rays, a child the bundle's bounds
-    miss (frustum.py: the same verdicts) is not tested ray by ray."""
-    l0, l1, l2, l3, l4, l5 = _node_corners(node_box, left)
-    r0, r1, r2, r3, r4, r5 = _node_corners(node_box, right)
-    test_l = True
-    test_r = True
-    if at_least(m, MIN_RAYS):
-        test_l = not misses_all((l0, l1, l2, l3, l4, l5), br.bounds)
-        test_r = not misses_all((r0, r1, r2, r3, r4, r5), br.bounds)
-    alive_l = ZERO
-    alive_r = ZERO
-    lanes = br.lanes
-    for g in range(lanes.shape[1] // WIDTH):
-        bits = _group_bits(m, g)
-        if bits == ZERO:
-            continue
-        count_lanes(br.walk_counts, W_BOX_TESTS, g, bits, 2)
-        if surfaces:
-            count_lanes(br.walk_counts, W_SURFACES, g, bits, surfaces)
-        shift = np.uint64(WIDTH * g)
-        if test_l:
-            alive_l |= (slab_lanes(lanes, L_O, g, l0, l1, l2, l3, l4, l5, br.node_tin, None, row_l) & bits) << shift
-        if test_r:
-            alive_r |= (slab_lanes(lanes, L_O, g, r0, r1, r2, r3, r4, r5, br.node_tin, None, row_r) & bits) << shift
-    return alive_l, alive_r
-
-
-@njit(cache=True, nogil=True, inline='always')
-def _ahead_in(tin, br, row, m, count_nodes):
-    """The rays of m whose entry t into the box of `row` (tin[row, r]) lies before their own
-    closest hit: the others drop out of it (from the lanes). count_nodes: each live ray counts a
-    node (the walk's)."""
-    live = ZERO
-    for g in range(br.lanes.shape[1] // WIDTH):
-        bits = _group_bits(m, g)
-        if bits != ZERO:
-            kept = ahead_lanes(tin, row, br.lanes, g, bits)
-            if count_nodes:
-                count_lanes(br.walk_counts, W_NODES, g, kept, 1)
-            live |= kept << np.uint64(WIDTH * g)
-    return live
-
-
-def _bvh_bundle_walk(agg, lv, trims, q, sl, br, active):
-    """The BVH walk of a bundle (template, specialised by make_bvh_bundle_walk): its node tests
-    eight rays at a time (lanes.py), its counters kept in lanes until it ends."""
-    node_child = agg.node_child
-    _load_lanes(br, active)
-    _count_walk(br, active, W_BOX_TESTS, 1)
-    if node_child[0, 0] < 0:
-        _count_walk(br, active, W_SURFACES, agg.leaf_count[0])
-    bound_rays(br.bounds, br.rays, active)
-    m = _node_rays(agg.node_box, 0, br, br.node_row[0], active)
-    if m == ZERO:
-        _store_counts(br, active)
-        return
-    br.node[0] = 0
-    br.node_mask[0] = m
-    top = 1
-    while top > 0:
-        top -= 1
-        node = br.node[top]
-        live = _ahead_in(br.node_tin, br, br.node_row[top], br.node_mask[top], True)
-        if live == ZERO:
-            continue
-        left = node_child[node, 0]
-        if left < 0:
-            first = agg.leaf_first[node]
-            _count_walk(br, live, W_PATCHES, agg.leaf_count[node])  # the searches below count no patches
-            for k in range(first, first + agg.leaf_count[node]):  # (each hit they report goes into the lanes)
-                search(agg.items[k], lv, trims, q, sl, br, live)  # noqa: F821
-            continue
-        right = node_child[node, 1]
-        surfaces = 0
-        for child in (left, right):
-            if node_child[child, 0] < 0:
-                surfaces += agg.leaf_count[child]
-        # Both children's intervals go where they will be popped from: the nearer on top.
-        row_l = br.node_row[top]
-        row_r = br.node_row[top + 1]
-        ml, mr = _children_rays(agg.node_box, left, right, br, row_l, row_r, live, surfaces)
-        if ml == ZERO and mr == ZERO:
-            continue
-        if ml == ZERO or mr == ZERO:
-            only = left if ml != ZERO else right
-            br.node[top] = only
-            br.node_mask[top] = ml | mr
-            if only == right:
-                br.node_row[top], br.node_row[top + 1] = row_r, row_l
-            top += 1
-            continue
-        if _nearest_in(br.node_tin, br, row_l, ml) <= _nearest_in(br.node_tin, br, row_r, mr):  # left nearer: right below it
-            br.node_row[top], br.node_row[top + 1] = row_r, row_l
-            br.node[top], br.node[top + 1] = right, left
-            br.node_mask[top], br.node_mask[top + 1] = mr, ml
-        else:
-            br.node[top], br.node[top + 1] = left, right
-            br.node_mask[top], br.node_mask[top + 1] = ml, mr
-        top += 2
-    _store_counts(br, active)
-
-
-def make_bvh_bundle_walk(search):
-    """walk(agg, lv, trims, q, sl, br, active): the bundle through the BVH, each visited leaf's
-    patches searched for the rays that reach it."""
-    return njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(_bvh_bundle_walk, search=search))
 
 
 def bundle_rays(count: int, slots: int, stack: int) -> BundleRays:

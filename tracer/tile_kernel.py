@@ -12,7 +12,8 @@ import math
 import numpy as np
 
 from .aggregate import WALKS, walk_scratch
-from .bundle import ONE, ZERO, bundle_rays, make_bundle_search, make_bvh_bundle_walk
+from .bundle import ONE, ZERO, bundle_rays, make_bundle_search
+from .bundle_walk import make_bvh_bundle_walk
 from .drivers import make_search
 from .jit import njit, specialise
 from .ray import H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, R_BUDGET, make_ray
