@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from .aggregate import BvhNodes  # noqa: F401 (the record the walk reads)
-from .bundle import W_BOX_TESTS, W_NODES, W_PATCHES, W_SURFACES, ZERO, ONE, ahead_in, group_bits, lowest_bit
-from .bundle import nearest_in
+from .bundle import (ONE, W_BOX_TESTS, W_NODES, W_PATCHES, W_SURFACES, ZERO, ahead_in, group_bits, lowest_bit,
+                     nearest_in)
 from .frustum import MIN_RAYS, at_least, bound_rays, misses_all
 from .jit import njit, specialise
 from .lanes import L_D, L_DT, L_HIT, L_INV, L_O, L_T0, L_TMIN, WIDTH, count_lanes, slab_lanes
