@@ -30,7 +30,7 @@ def _same(a, b):
 
 
 @pytest.mark.parametrize("criterion", ["float", "fixed", "mantissa"])
-@pytest.mark.parametrize("name", ["teapot", "sphere", "plate", "stress/degree 9x7"])
+@pytest.mark.parametrize("name", ["teapot", "sphere", "plate", "impeller", "stress/degree 9x7"])
 def test_cached_renders_are_the_uncached_bits(name, criterion):
     scene, view = D.catalogue()[name][0]()
     geom = prepare(scene, "f32")

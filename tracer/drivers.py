@@ -66,6 +66,21 @@ def _search(p, lv, trims, ray, hit, q, sl, trace):
     return effort
 
 
+@njit(cache=True, nogil=True, inline='always')
+def _halve_working(sl, a, cached, pa, lv, lray, q, d_crit, shrank, free, nfree, ncoord, has_general):
+    """Halve slot a in working slots, a cached node copied into one first: (a, b, the direction,
+    the free slots' count)."""
+    if cached:
+        nfree -= 1
+        w = free[nfree]
+        copy_slot(sl, a, w, ncoord, pa.count)
+        a = w
+    tighten(sl, a, pa, lv)
+    nfree -= 1
+    b = free[nfree]
+    return a, b, halve(sl, a, b, pa, lray, q, d_crit, shrank, has_general), nfree
+
+
 def _cached_search(p, lv, trims, ray, hit, q, sl, trace):
     """The patch search template with the surface-tree cache (surface_cache.py): the steps of
     _search, on a stack of slots that are cached nodes (never freed) or working slots."""
@@ -120,43 +135,65 @@ def _cached_search(p, lv, trims, ray, hit, q, sl, trace):
                 nfree += 1
             continue
         effort += 2
-        kid = -1
-        build = False
-        if cached and sl.mi[a, I_DEPTH] < cache.state[S_DEPTH]:
-            kid = cache.child[a - first]
-            if kid < 0:  # compute the halves once, in working slots, and keep them
-                kid = take_pair(cache, p)
-                build = kid >= 0
-        if kid >= 0 and not build:  # the cached halves, with this ray's view of their parent
-            for c in (kid, kid + 1):
-                mf[c, M_DPAR] = d_crit
-                sl.mi[c, I_STALLED] = 0 if shrank else 1
-            a = np.uint32(kid)  # (unsigned, as the stack's slots)
-            b = np.uint32(kid + 1)
-            direction = sl.mi[kid, I_LAST]
-        else:  # computed halves in working slots
-            node = a
-            if cached:
-                nfree -= 1
-                w = free[nfree]
-                copy_slot(sl, a, w, ncoord, pa.count)
-                a = w
-            tighten(sl, a, pa, lv)
-            nfree -= 1
-            b = free[nfree]
-            direction = halve(sl, a, b, pa, lray, q, d_crit, shrank, HAS_GENERAL)  # noqa: F821
-            if build:  # into the cache; the working slots go back
-                nfree = keep_halves(sl, cache, node, a, b, kid, ncoord, pa.count, free, nfree)
-                a = np.uint32(kid)
+        if WIDE:  # noqa: F821 (float64 slots, general degree: a copy of the halving in each branch)
+            kid = -1
+            if cached and sl.mi[a, I_DEPTH] < cache.state[S_DEPTH]:
+                kid = cache.child[a - first]
+                if kid < 0:  # compute the halves once, in working slots, and keep them
+                    kid = take_pair(cache, p)
+                    if kid >= 0:
+                        w = free[nfree - 1]
+                        b = free[nfree - 2]
+                        copy_slot(sl, a, w, ncoord, pa.count)
+                        tighten(sl, w, pa, lv)
+                        halve(sl, w, b, pa, lray, q, d_crit, shrank, HAS_GENERAL)  # noqa: F821
+                        keep_halves(sl, cache, a, w, b, kid, ncoord, pa.count, free, nfree - 2)
+            if kid >= 0:  # the cached halves, with this ray's view of their parent
+                for c in (kid, kid + 1):
+                    mf[c, M_DPAR] = d_crit
+                    sl.mi[c, I_STALLED] = 0 if shrank else 1
+                far, near, alive_far, alive_near = sort_halves(sl, np.uint32(kid), np.uint32(kid + 1), pa, lv, lray,
+                                                               hit[H_TIN], sl.mi[kid, I_LAST], trace, False)
+            else:  # computed halves in working slots
+                a, b, direction, nfree = _halve_working(sl, a, cached, pa, lv, lray, q, d_crit, shrank, free, nfree,
+                                                        ncoord, HAS_GENERAL)  # noqa: F821
+                far, near, alive_far, alive_near = sort_halves(sl, a, b, pa, lv, lray, hit[H_TIN], direction, trace,
+                                                               False)
+                for c, alive in ((far, alive_far), (near, alive_near)):
+                    if not alive:
+                        free[nfree] = c
+                        nfree += 1
+        else:
+            kid = -1
+            build = False
+            if cached and sl.mi[a, I_DEPTH] < cache.state[S_DEPTH]:
+                kid = cache.child[a - first]
+                if kid < 0:  # compute the halves once, in working slots, and keep them
+                    kid = take_pair(cache, p)
+                    build = kid >= 0
+            if kid >= 0 and not build:  # the cached halves, with this ray's view of their parent
+                for c in (kid, kid + 1):
+                    mf[c, M_DPAR] = d_crit
+                    sl.mi[c, I_STALLED] = 0 if shrank else 1
+                a = np.uint32(kid)  # (unsigned, as the stack's slots)
                 b = np.uint32(kid + 1)
-        # One inlined copy of the halving and of sort_halves for cached and computed halves: with
-        # a copy in each branch the teapot's float frame with the cache took 0.83 s, not 0.64 s.
-        far, near, alive_far, alive_near = sort_halves(sl, a, b, pa, lv, lray, hit[H_TIN], direction, trace, False)
-        if kid < 0:
-            for c, alive in ((far, alive_far), (near, alive_near)):
-                if not alive:
-                    free[nfree] = c
-                    nfree += 1
+                direction = sl.mi[kid, I_LAST]
+            else:  # computed halves in working slots
+                node = a
+                a, b, direction, nfree = _halve_working(sl, a, cached, pa, lv, lray, q, d_crit, shrank, free, nfree,
+                                                        ncoord, HAS_GENERAL)  # noqa: F821
+                if build:  # into the cache; the working slots go back
+                    nfree = keep_halves(sl, cache, node, a, b, kid, ncoord, pa.count, free, nfree)
+                    a = np.uint32(kid)
+                    b = np.uint32(kid + 1)
+            # One inlined copy of the halving and of sort_halves for cached and computed halves: with
+            # a copy in each branch the teapot's float frame with the cache took 0.83 s, not 0.64 s.
+            far, near, alive_far, alive_near = sort_halves(sl, a, b, pa, lv, lray, hit[H_TIN], direction, trace, False)
+            if kid < 0:
+                for c, alive in ((far, alive_far), (near, alive_near)):
+                    if not alive:
+                        free[nfree] = c
+                        nfree += 1
         if alive_far:
             stack[sp] = far
             sp += 1
