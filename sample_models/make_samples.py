@@ -21,7 +21,8 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
 from tracer.formats.obj import dumps_obj  # noqa: E402
-from tracer.nurbs import NurbsCurve, NurbsSurface, circle_arc, revolve  # noqa: E402
+from tracer.nurbs import NurbsCurve, NurbsSurface  # noqa: E402
+from tracer.revolution import circle_arc, revolve  # noqa: E402
 
 SPHERE_RADIUS = 1.0
 TORUS_R, TORUS_r = 1.0, 0.35

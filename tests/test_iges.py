@@ -11,7 +11,8 @@ from pyiges import examples  # noqa: E402
 
 from tracer.errors import SceneError  # noqa: E402
 from tracer.formats.iges import load_iges  # noqa: E402
-from tracer.nurbs import CircleParam, bezier_surface_point  # noqa: E402
+from tracer.nurbs import bezier_surface_point  # noqa: E402
+from tracer.revolution import CircleParam  # noqa: E402
 from tracer.scene import load_scene  # noqa: E402
 from tracer.trim import inside  # noqa: E402
 

@@ -5,9 +5,9 @@ import re
 import numpy as np
 import pytest
 
-from tracer.nurbs import (CircleParam, NurbsCurve, NurbsError, NurbsSurface, bezier_knots,
-                          bezier_surface, bezier_surface_point, circle_arc, de_casteljau,
-                          decomposition, homogeneous, revolve)
+from tracer.nurbs import (NurbsCurve, NurbsError, NurbsSurface, bezier_knots, bezier_surface, bezier_surface_point,
+                          de_casteljau, decomposition, homogeneous)
+from tracer.revolution import CircleParam, circle_arc, revolve
 
 TOL = 1e-12  # knot insertion vs de Boor, coordinates of order 1, weights in [0.1, 10]
 

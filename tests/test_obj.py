@@ -9,7 +9,8 @@ import pytest
 
 from tracer.errors import SceneError
 from tracer.formats.obj import dumps_obj, load_obj, parse_obj
-from tracer.nurbs import NurbsCurve, NurbsSurface, bezier_surface_point, circle_arc
+from tracer.nurbs import NurbsCurve, NurbsSurface, bezier_surface_point
+from tracer.revolution import circle_arc
 from tracer.scene import load_scene, scene_from_dict
 from tracer.trim import inside
 from mutate import mutate

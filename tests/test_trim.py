@@ -6,7 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tracer.nurbs import CircleParam, NurbsCurve, circle_arc
+from tracer.nurbs import NurbsCurve
+from tracer.revolution import CircleParam, circle_arc
 from tracer.trim import (TrimError, build_trimset, curve_segments, empty_trimset, fit_cubics,
                          inside, loops_for_plot, make_loop, remap_segments, sample_segment,
                          signed_area)

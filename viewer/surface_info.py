@@ -126,7 +126,7 @@ def surface_location(info) -> str:
 
 def _iges_angles(entity: dict, u: float, v: float) -> dict:
     """For IGES surfaces of revolution: the IGES angle of a NURBS circle parameter (per axis)."""
-    from tracer.nurbs import CircleParam
+    from tracer.revolution import CircleParam
     out = {}
     for axis, x in (("u", u), ("v", v)):
         rng = entity.get(f"angle_{axis}")

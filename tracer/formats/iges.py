@@ -9,7 +9,7 @@ Conversions, all exact unless said otherwise:
 - 120 surface of revolution -> rational NURBS (generatrix 110, 126 or 100 turned
   by rational quadratic arcs). u is the generatrix parameter and v the angle
   in IGES; in the NURBS, an angle becomes the rational circle parameter
-  (equal at knots, see nurbs.CircleParam), so trimming curves are pushed
+  (equal at knots, see revolution.CircleParam), so trimming curves are pushed
   through that map: exactly for curves along a parameter line, by cubic
   pieces within 1e-11 of the parameter range elsewhere (counted in the report).
 - 144 trimmed surface -> the base surface with a `trim` loop (outer boundary,
@@ -39,8 +39,8 @@ from tracer.errors import SceneError
 from tracer.fixed_order import affine, matmul4
 from tracer.formats.iges_sections import read_iges
 from tracer.formats.losses import group_losses
-from tracer.nurbs import (CircleParam, FreeformModel, FreeformSurface, NurbsCurve, NurbsError,
-                          NurbsSurface, SurfaceInfo, circle_arc, revolve)
+from tracer.nurbs import FreeformModel, FreeformSurface, NurbsCurve, NurbsError, NurbsSurface, SurfaceInfo
+from tracer.revolution import CircleParam, circle_arc, revolve
 from tracer.trim import TrimError, curve_segments, make_loop, remap_segments
 
 REMAP_TOL = 1e-11         # relative to the parameter range: trims through the angle map
