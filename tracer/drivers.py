@@ -141,13 +141,10 @@ def _cached_search(p, lv, trims, ray, hit, q, sl, trace):
                 kid = cache.child[a - first]
                 if kid < 0:  # compute the halves once, in working slots, and keep them
                     kid = take_pair(cache, p)
-                    if kid >= 0:
-                        w = free[nfree - 1]
-                        b = free[nfree - 2]
-                        copy_slot(sl, a, w, ncoord, pa.count)
-                        tighten(sl, w, pa, lv)
-                        halve(sl, w, b, pa, lray, q, d_crit, shrank, HAS_GENERAL)  # noqa: F821
-                        keep_halves(sl, cache, a, w, b, kid, ncoord, pa.count, free, nfree - 2)
+                    if kid >= 0:  # (_halve_working takes two free slots, keep_halves gives them back)
+                        w, b, _, taken = _halve_working(sl, a, True, pa, lv, lray, q, d_crit, shrank, free, nfree,
+                                                       ncoord, HAS_GENERAL)  # noqa: F821
+                        keep_halves(sl, cache, a, w, b, kid, ncoord, pa.count, free, taken)
             if kid >= 0:  # the cached halves, with this ray's view of their parent
                 for c in (kid, kid + 1):
                     mf[c, M_DPAR] = d_crit
