@@ -96,7 +96,7 @@ def _bvh_walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts):
     while top > 0:
         top -= 1
         node = stack.nodes[top]
-        if stack.tin[top] >= hit[H_TIN]:
+        if stack.tin[top] > hit[H_TIN]:  # (a box entered at the best t may hold a tie: drivers)
             continue
         counts[C_NODES] += 1
         left = node_child[node, 0]
@@ -120,8 +120,8 @@ def _bvh_walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts):
         for child in (left, right):  # a leaf's box is its patches' box (one patch a leaf)
             if node_child[child, 0] < 0:
                 counts[C_SURFACES] += agg.leaf_count[child]
-        ok_l = ok_l and tl < hit[H_TIN]
-        ok_r = ok_r and tr < hit[H_TIN]
+        ok_l = ok_l and tl <= hit[H_TIN]
+        ok_r = ok_r and tr <= hit[H_TIN]
         if ok_l and ok_r:
             far_first = tl <= tr
             stack.nodes[top] = right if far_first else left

@@ -28,9 +28,9 @@ import numpy as np
 from .drivers import WIDE_BITS, wide_leaves, wide_slots
 from .frustum import F_LEN
 from .jit import njit, specialise
-from .lanes import L_HIT, L_LEN, L_PO, WIDTH, ahead_lanes, at_start_lanes
+from .lanes import L_BEST, L_HIT, L_LEN, L_PO, WIDTH, ahead_lanes, at_start_lanes
 from .lanes import count_lanes, nearest_lanes, padded, slab_lanes, within_detail_lanes
-from .ray import H_TIN, RAY_LEN, R_O, R_TMIN
+from .ray import H_PATCH, H_TIN, RAY_LEN, R_O, R_TMIN
 from .records import C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT
 from .search_steps import ADAPTIVE, GRID_PREFILTER, halve, hull_accepts, judge_known, near_and_far, report, root_at
 from .search_steps import tighten, trim_accepts, trim_state
@@ -469,6 +469,31 @@ def _rational_only(p, lv, trims, q, sl, br, active):
     wide(p, wide_leaves(lv), trims, q, wide_slots(sl), br, active)  # noqa: F821
 
 
+def _closest_rays(p, lv, trims, q, sl, br, active):
+    """search for the rays of `active` with drivers._closest's tie rule, ray by ray: a ray whose best
+    hit lies in a leaf above p searches up to the next float past its best t, any other up to its
+    best t. The walk's lanes hold the next float past each ray's best t (the walk lets boxes
+    entered at the best t through), the search's the t it searches up to."""
+    m = active
+    while m != ZERO:
+        r = lowest_bit(m)
+        m &= m - ONE
+        best = br.hits[r, H_TIN]
+        br.lanes[L_BEST, r] = best
+        if br.hits[r, H_PATCH] > p and best < np.inf:
+            best = np.nextafter(best, np.inf)
+            br.hits[r, H_TIN] = best
+        br.lanes[L_HIT, r] = best
+    search(p, lv, trims, q, sl, br, active)  # noqa: F821
+    m = active
+    while m != ZERO:
+        r = lowest_bit(m)
+        m &= m - ONE
+        if br.hits[r, H_PATCH] != p:  # nothing found: the best stays
+            br.hits[r, H_TIN] = br.lanes[L_BEST, r]
+        br.lanes[L_HIT, r] = np.nextafter(br.hits[r, H_TIN], np.inf)
+
+
 def make_bundle_search(variant, alone: bool = True):
     """search(p, lv, trims, q, sl, br, active): patch p searched for the rays of mask `active` of
     the bundle br (BundleRays); each ray's hit shrinks as it finds closer hit boxes. Integral
@@ -489,12 +514,14 @@ def make_bundle_search(variant, alone: bool = True):
         narrow = kernel(specialise(_bundle_search, WIDE=False, HAS_RATIONAL=False, HAS_CUBIC=variant.cubic,
                                    HAS_LINEAR=variant.linear, HAS_GENERAL=variant.general,
                                    solo=solo(variant.general), **flags))
-    if not variant.rational:
-        return narrow
-    wide = kernel(specialise(_bundle_search, WIDE=True, HAS_RATIONAL=True, HAS_CUBIC=False, HAS_LINEAR=False,
-                             HAS_GENERAL=True, solo=solo(True), **flags))
-    dispatch = _rational_only if narrow is None else _by_kind
-    return njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(dispatch, wide=wide, narrow=narrow))
+    search = narrow
+    if variant.rational:
+        wide = kernel(specialise(_bundle_search, WIDE=True, HAS_RATIONAL=True, HAS_CUBIC=False, HAS_LINEAR=False,
+                                 HAS_GENERAL=True, solo=solo(True), **flags))
+        dispatch = _rational_only if narrow is None else _by_kind
+        search = njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(dispatch, wide=wide,
+                                                                                      narrow=narrow))
+    return njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(_closest_rays, search=search))
 
 
 def bundle_rays(count: int, slots: int, stack: int) -> BundleRays:

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 
 from .jit import njit, specialise
-from .ray import H_TIN, R_BUDGET, R_D, R_INV, R_O, R_TMIN, slab
+from .ray import H_PATCH, H_TIN, R_BUDGET, R_D, R_INV, R_O, R_TMIN, slab
 from .records import C_BOX_TESTS, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES, C_UNRESOLVED
 
 GO_ON, STOP = 0, 1
@@ -40,12 +40,15 @@ def _visit_cell(agg, first, count, t_enter, t_exit, lv, trims, ray, hit, q, sl, 
     ray is [t_enter, t_exit]; returns STOP when the walk must end (budget, or any hit found)."""
     t_min = ray[R_TMIN]
     best = hit[H_TIN]
+    best_patch = hit[H_PATCH]
     limit = best
     ray_id = ws.ray_id[0]
     if not agg.mailbox:
         limit = min(best, t_exit)
         ray[R_TMIN] = max(t_min, t_enter)
         hit[H_TIN] = limit
+        if limit < best:  # the cell's exit, not a hit: no leaf may tie with it (drivers)
+            hit[H_PATCH] = -1.0
     for k in range(first, first + count):
         p = agg.items[k]
         if agg.mailbox:
@@ -55,7 +58,7 @@ def _visit_cell(agg, first, count, t_enter, t_exit, lv, trims, ray, hit, q, sl, 
         counts[C_SURFACES] += 1
         counts[C_BOX_TESTS] += 1
         ok, t_box, _ = slab(agg.patch_box[p], 0.0, 0.0, 0.0, ray)
-        if not ok or t_box >= hit[H_TIN]:
+        if not ok or t_box > hit[H_TIN]:
             continue
         counts[C_PATCHES] += 1
         spent = search(p, lv, trims, ray, hit, q, sl, trace)  # noqa: F821
@@ -67,8 +70,10 @@ def _visit_cell(agg, first, count, t_enter, t_exit, lv, trims, ray, hit, q, sl, 
         if STOP_AT_FIRST and hit[H_TIN] < limit:  # noqa: F821
             break
     ray[R_TMIN] = t_min
-    if hit[H_TIN] >= limit:  # nothing found here: the clamp goes
+    if hit[H_TIN] >= limit:  # nothing found here (or a tie with the best, the best now): the clamp goes
         hit[H_TIN] = best
+        if limit < best:
+            hit[H_PATCH] = best_patch
     elif STOP_AT_FIRST:  # noqa: F821
         return STOP
     return STOP if counts[C_UNRESOLVED] != 0 else GO_ON
@@ -86,7 +91,7 @@ def _kd_walk(agg, lv, trims, ray, hit, q, sl, ws, trace, counts):
     """The kd-tree walk template (pbrt's front-to-back traversal with a stack of far children)."""
     ok, t0, t1 = slab(agg.bounds, 0.0, 0.0, 0.0, ray)
     counts[C_BOX_TESTS] += 1
-    if not ok or t0 >= hit[H_TIN]:
+    if not ok or t0 > hit[H_TIN]:
         return
     ws.ray_id[0] += 1
     slack = _slack(agg, ray)
@@ -99,7 +104,7 @@ def _kd_walk(agg, lv, trims, ray, hit, q, sl, ws, trace, counts):
         node = ws.nodes[top]
         t_lo = ws.tin[top]
         t_hi = ws.tout[top]
-        if t_lo >= hit[H_TIN]:
+        if t_lo > hit[H_TIN]:
             continue
         while True:
             counts[C_NODES] += 1
@@ -144,7 +149,7 @@ def _grid_walk(agg, lv, trims, ray, hit, q, sl, ws, trace, counts):
     is computed from the cell index, not accumulated, so its error does not grow along the ray)."""
     ok, t0, t1 = slab(agg.bounds, 0.0, 0.0, 0.0, ray)
     counts[C_BOX_TESTS] += 1
-    if not ok or t0 >= hit[H_TIN]:
+    if not ok or t0 > hit[H_TIN]:
         return
     ws.ray_id[0] += 1
     slack = _slack(agg, ray)
@@ -197,7 +202,7 @@ def _grid_walk(agg, lv, trims, ray, hit, q, sl, ws, trace, counts):
         if idx[a] < 0 or idx[a] >= agg.dims[a]:
             return
         t_enter = t_exit - slack * abs(ray[R_INV + a])
-        if t_enter >= hit[H_TIN]:
+        if t_enter > hit[H_TIN]:
             return
         t_next[a] = _boundary(agg, a, idx[a] + (1 if step[a] > 0 else 0), ray)
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from .jit import njit, specialise
 
-from .ray import H_TIN, R_BUDGET
+from .ray import H_PATCH, H_TIN, R_BUDGET
 from .records import Leaves, Slots
 from .search_steps import HIT, MISS, PRUNED, accept, enter_frame, halve, judge, open_child, report, root, root_at
 from .search_steps import set_event, sort_halves, subdivide, tighten, trace_hit, trim_state
@@ -224,6 +224,22 @@ def _rational_only(p, lv, trims, ray, hit, q, sl, trace):
     return wide(p, wide_leaves(lv), trims, ray, hit, q, wide_slots(sl), trace)  # noqa: F821
 
 
+def _closest(p, lv, trims, ray, hit, q, sl, trace):
+    """search (the closest-hit query) with the tie rule: of hit boxes entered at the same t, the
+    one of the lower leaf wins, whatever order the walk visits the leaves in. So a leaf below the
+    best hit's searches up to the next float past the best t (a box entered at the best t is a
+    candidate), any other up to the best t; the walks let boxes entered at the best t through.
+    (Within a leaf the first box found wins, in the search's own order.)"""
+    best = hit[H_TIN]
+    tie = hit[H_PATCH] > p and best < np.inf
+    if tie:
+        hit[H_TIN] = np.nextafter(best, np.inf)
+    effort = search(p, lv, trims, ray, hit, q, sl, trace)  # noqa: F821
+    if tie and hit[H_PATCH] != p:  # nothing found: the best stays
+        hit[H_TIN] = best
+    return effort
+
+
 def make_search(variant, any_hit: bool):
     """The patch search of one variant: search(p, lv, trims, ray, hit, q, sl, trace) -> boxes
     computed; updates `hit` when it finds a hit box before hit[H_TIN] (any_hit: the first one
@@ -242,10 +258,13 @@ def make_search(variant, any_hit: bool):
     if variant.cubic or variant.linear or variant.general:
         narrow = kernel(specialise(template, WIDE=False, HAS_RATIONAL=False, HAS_CUBIC=variant.cubic,
                                    HAS_LINEAR=variant.linear, HAS_GENERAL=variant.general, **flags))
-    if not variant.rational:
-        return narrow
-    wide = kernel(specialise(template, WIDE=True, HAS_RATIONAL=True, HAS_CUBIC=False, HAS_LINEAR=False,
-                             HAS_GENERAL=True, **flags))
-    if narrow is None:
-        return njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(_rational_only, wide=wide))
-    return njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(_by_kind, wide=wide, narrow=narrow))
+    search = narrow
+    if variant.rational:
+        wide = kernel(specialise(template, WIDE=True, HAS_RATIONAL=True, HAS_CUBIC=False, HAS_LINEAR=False,
+                                 HAS_GENERAL=True, **flags))
+        dispatch = specialise(_rational_only, wide=wide) if narrow is None else specialise(_by_kind, wide=wide,
+                                                                                           narrow=narrow)
+        search = njit(cache=True, nogil=True, _nrt=False, inline='always')(dispatch)
+    if any_hit:
+        return search
+    return njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(_closest, search=search))

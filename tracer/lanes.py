@@ -25,9 +25,10 @@ from .ray import T_SLACK
 WIDTH = 8
 # lanes rows: origin xyz, direction xyz, 1 / direction xyz, t_min, the ray's closest hit's entry t,
 # the origin in the frame of the patch being searched (bundle.lrays), the threshold of detail at t = 0
-# and its growth per unit t (ray.R_T0, R_DT: the adaptive criterion's)
-L_O, L_D, L_INV, L_TMIN, L_HIT, L_PO, L_T0, L_DT = 0, 3, 6, 9, 10, 11, 14, 15
-L_LEN = 16
+# and its growth per unit t (ray.R_T0, R_DT: the adaptive criterion's), the closest hit's entry t
+# kept while a search bumps it (bundle._closest_rays)
+L_O, L_D, L_INV, L_TMIN, L_HIT, L_PO, L_T0, L_DT, L_BEST = 0, 3, 6, 9, 10, 11, 14, 15, 16
+L_LEN = 17
 
 
 def padded(count: int) -> int:

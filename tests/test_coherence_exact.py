@@ -1,0 +1,81 @@
+"""Issue 12's correctness: with the length split, the coherence options change no answer. Bundles,
+the kd-tree and the grid, the surface-tree cache and the pixel orders report the plain render's
+(1x1, BVH, no cache, scanline) hit, t, position, box, normal, uv and patch bit for bit.
+
+The scenes hold exact ties, hit boxes of two leaves entered at the same t, which any visiting
+order used to settle its own way (the first box found won): the teapot's bottom seen from below
+its floor (the floor and the bottom both lie on z = 0), and the flat boxes at the lid's apex.
+The tie rule (drivers._closest) settles them alike in every order: the lower leaf wins.
+
+What is held here, and what is not yet (the README's "Exact in every order"):
+- under every criterion, the cache and the pixel orders, which keep the BVH's order of visits;
+- under the float and mantissa criteria, bundles, the kd-tree and the grid too, with and without
+  the mailbox;
+- not yet under the fixed and adaptive criteria, whose hit boxes are coarse: a sub-patch's widened
+  box can reach a few ulps before its parent's along the ray, so a box pruned by the best hit so
+  far (found in another order) may have held a hit entered a hair before it; under `adaptive` the
+  ray clamped to a kd-tree or grid cell also moves the entry t, where the threshold of detail is
+  read, and a bundle's first ray judges a shared box for all of them (tests/test_bundles.py).
+"""
+import numpy as np
+import pytest
+
+import digests as D
+from tracer.camera import View
+from tracer.geometry import prepare
+from tracer.options import Options
+from tracer.render import render
+
+EXACT = ("hit", "t", "position", "box_min", "box_max", "normal", "uv", "patch")
+UNDER_THE_FLOOR = View((-590.92, 657.07, -2463.17), (5.1774, 2.4556, 0.5047), (0.0, 0.0, 1.0), 0.5)
+SCENES = {"teapot from below": ("teapot", UNDER_THE_FLOOR, (40, 40)),
+          "lid apex zoom": ("stress/lid apex zoom", None, (24, 24)),
+          "plate (trimmed)": ("plate", None, (24, 24))}
+BVH_ORDER = [dict(cache=True, order="peano"), dict(order="itembuffer")]
+OTHER_ORDERS = [dict(bundle="8x8", cache=True, order="peano"), dict(bundle="4x2", order="itembuffer"),
+                dict(accel="kdtree", mailbox=True, order="itembuffer"), dict(accel="kdtree", order="peano"),
+                dict(accel="grid", mailbox=True, cache=True, order="peano"), dict(accel="grid", cache=True)]
+
+
+def _combinations(criterion):
+    return BVH_ORDER + (OTHER_ORDERS if criterion in ("float", "mantissa") else [])
+
+
+def _moved(a, b):
+    return [c for c in EXACT if not np.array_equal(getattr(a, c), getattr(b, c), equal_nan=True)]
+
+
+@pytest.mark.parametrize("precision", ["f32", "f64"])
+@pytest.mark.parametrize("criterion", ["float", "fixed", "mantissa", "adaptive"])
+@pytest.mark.parametrize("case", list(SCENES))
+def test_every_coherence_setting_reports_the_plain_bits(case, criterion, precision):
+    name, view, size = SCENES[case]
+    if precision == "f64" and name == "plate":
+        pytest.skip("the trimmed scene in f32 only (its f64 variants would compile for this test alone)")
+    scene, own_view = D.catalogue()[name][0]()
+    view = view or own_view
+    geom = prepare(scene, precision)
+    plain = Options(criterion=criterion, precision=precision, split="length")
+    base = render(scene, plain, size=size, view=view, geometry=geom, lighting=False)
+    assert base.hit.sum() > 0.2 * size[0] * size[1]
+    bad = []
+    for changes in _combinations(criterion):
+        frame = render(scene, plain.with_(**changes), size=size, view=view, geometry=geom, lighting=False)
+        if _moved(frame, base):
+            bad.append((changes, _moved(frame, base)))
+    assert not bad, bad
+
+
+def test_a_tie_between_leaves_goes_to_the_lower_leaf_in_every_order():
+    """The pixel where the floor and the teapot's bottom are entered at the same t: the BVH met the
+    floor first and reported it, the kd-tree the bottom; both now report the bottom (the lower
+    leaf), and here every pixel is the same."""
+    scene, _ = D.catalogue()["teapot"][0]()
+    geom = prepare(scene, "f64")
+    opts = Options(criterion="adaptive", precision="f64")
+    frames = [render(scene, opts.with_(**changes), size=(40, 40), view=UNDER_THE_FLOOR, geometry=geom,
+                     lighting=False) for changes in ({}, dict(accel="kdtree", mailbox=True))]
+    floor = scene.n_patches - 1  # the floor is the sample's last patch; the bottom is patch 28
+    for frame in frames:
+        assert frame.hit[17, 29] and frame.patch[17, 29] == 28 and floor == 32
+    assert not _moved(frames[0], frames[1])
