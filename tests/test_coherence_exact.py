@@ -11,9 +11,9 @@ What is held here, and what is not yet (the README's "Exact in every order"):
 - under every criterion, the cache and the pixel orders, which keep the BVH's order of visits;
 - under the float and mantissa criteria, bundles, the kd-tree and the grid too, with and without
   the mailbox;
-- not yet under the fixed and adaptive criteria, whose hit boxes are coarse: a sub-patch's widened
-  box can reach a few ulps before its parent's along the ray, so a box pruned by the best hit so
-  far (found in another order) may have held a hit entered a hair before it; under `adaptive` the
+- not yet under the fixed and adaptive criteria, whose hit boxes are coarse: a half's widened box
+  often begins before its parent's along the ray, so a box pruned by the best hit so far (found
+  in another order) may have held a hit entered a hair before it; under `adaptive` the
   ray clamped to a kd-tree or grid cell also moves the entry t, where the threshold of detail is
   read, and a bundle's first ray judges a shared box for all of them (tests/test_bundles.py).
 """
