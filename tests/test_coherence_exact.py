@@ -5,7 +5,7 @@ the kd-tree and the grid, the surface-tree cache and the pixel orders report the
 The scenes hold exact ties, hit boxes of two leaves entered at the same t, which any visiting
 order used to settle its own way (the first box found won): the teapot's bottom seen from below
 its floor (the floor and the bottom both lie on z = 0), and the flat boxes at the lid's apex.
-The tie rule (drivers._closest) settles them alike in every order: the lower leaf wins.
+The tie rule (ray.search_limit) settles them alike in every order: the lower leaf wins.
 
 What is held here, and what is not yet (the README's "Exact in every order"):
 - under every criterion, the cache and the pixel orders, which keep the BVH's order of visits;

@@ -96,7 +96,7 @@ def _bvh_walk(agg, lv, trims, ray, hit, q, sl, stack, trace, counts):
     while top > 0:
         top -= 1
         node = stack.nodes[top]
-        if stack.tin[top] > hit[H_TIN]:  # (a box entered at the best t may hold a tie: drivers)
+        if stack.tin[top] > hit[H_TIN]:  # (a box entered at the best t may hold a tie: ray.search_limit)
             continue
         counts[C_NODES] += 1
         left = node_child[node, 0]

@@ -30,7 +30,7 @@ from .frustum import F_LEN
 from .jit import njit, specialise
 from .lanes import L_BEST, L_HIT, L_LEN, L_PO, WIDTH, ahead_lanes, at_start_lanes
 from .lanes import count_lanes, nearest_lanes, padded, slab_lanes, within_detail_lanes
-from .ray import H_PATCH, H_TIN, RAY_LEN, R_O, R_TMIN
+from .ray import H_PATCH, H_TIN, RAY_LEN, R_O, R_TMIN, search_limit
 from .records import C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT
 from .search_steps import ADAPTIVE, GRID_PREFILTER, halve, hull_accepts, judge_known, near_and_far, report, root_at
 from .search_steps import tighten, trim_accepts, trim_state
@@ -470,20 +470,16 @@ def _rational_only(p, lv, trims, q, sl, br, active):
 
 
 def _closest_rays(p, lv, trims, q, sl, br, active):
-    """search for the rays of `active` with drivers._closest's tie rule, ray by ray: a ray whose best
-    hit lies in a leaf above p searches up to the next float past its best t, any other up to its
-    best t. The walk's lanes hold the next float past each ray's best t (the walk lets boxes
-    entered at the best t through), the search's the t it searches up to."""
+    """search for the rays of `active`, each up to its ray.search_limit (the tie rule). The walk's
+    lanes hold the next float past each ray's best t (the walk lets boxes entered at the best t
+    through), the search's the t it searches up to."""
     m = active
     while m != ZERO:
         r = lowest_bit(m)
         m &= m - ONE
-        best = br.hits[r, H_TIN]
-        br.lanes[L_BEST, r] = best
-        if br.hits[r, H_PATCH] > p and best < np.inf:
-            best = np.nextafter(best, np.inf)
-            br.hits[r, H_TIN] = best
-        br.lanes[L_HIT, r] = best
+        br.lanes[L_BEST, r] = br.hits[r, H_TIN]
+        br.hits[r, H_TIN] = search_limit(br.hits[r], p)
+        br.lanes[L_HIT, r] = br.hits[r, H_TIN]
     search(p, lv, trims, q, sl, br, active)  # noqa: F821
     m = active
     while m != ZERO:

@@ -41,7 +41,7 @@ def _load_lanes(br, m):
             lanes[L_D + c, r] = ray[R_D + c]
             lanes[L_INV + c, r] = ray[R_INV + c]
         lanes[L_TMIN, r] = ray[R_TMIN]
-        lanes[L_HIT, r] = np.nextafter(br.hits[r, H_TIN], np.inf)  # the walk lets ties through (drivers._closest)
+        lanes[L_HIT, r] = np.nextafter(br.hits[r, H_TIN], np.inf)  # the walk lets ties through (ray.search_limit)
         lanes[L_T0, r] = ray[R_T0]
         lanes[L_DT, r] = ray[R_DT]
 

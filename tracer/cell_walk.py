@@ -47,7 +47,7 @@ def _visit_cell(agg, first, count, t_enter, t_exit, lv, trims, ray, hit, q, sl, 
         limit = min(best, t_exit)
         ray[R_TMIN] = max(t_min, t_enter)
         hit[H_TIN] = limit
-        if limit < best:  # the cell's exit, not a hit: no leaf may tie with it (drivers)
+        if limit < best:  # the cell's exit, not a hit: no leaf may tie with it (ray.search_limit)
             hit[H_PATCH] = -1.0
     for k in range(first, first + count):
         p = agg.items[k]

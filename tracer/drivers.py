@@ -18,7 +18,7 @@ import numpy as np
 
 from .jit import njit, specialise
 
-from .ray import H_PATCH, H_TIN, R_BUDGET
+from .ray import H_PATCH, H_TIN, R_BUDGET, search_limit
 from .records import Leaves, Slots
 from .search_steps import HIT, MISS, PRUNED, accept, enter_frame, halve, judge, open_child, report, root, root_at
 from .search_steps import set_event, sort_halves, subdivide, tighten, trace_hit, trim_state
@@ -225,17 +225,11 @@ def _rational_only(p, lv, trims, ray, hit, q, sl, trace):
 
 
 def _closest(p, lv, trims, ray, hit, q, sl, trace):
-    """search (the closest-hit query) with the tie rule: of hit boxes entered at the same t, the
-    one of the lower leaf wins, whatever order the walk visits the leaves in. So a leaf below the
-    best hit's searches up to the next float past the best t (a box entered at the best t is a
-    candidate), any other up to the best t; the walks let boxes entered at the best t through.
-    (Within a leaf the first box found wins, in the search's own order.)"""
+    """search (the closest-hit query) up to ray.search_limit: the tie rule."""
     best = hit[H_TIN]
-    tie = hit[H_PATCH] > p and best < np.inf
-    if tie:
-        hit[H_TIN] = np.nextafter(best, np.inf)
+    hit[H_TIN] = search_limit(hit, p)
     effort = search(p, lv, trims, ray, hit, q, sl, trace)  # noqa: F821
-    if tie and hit[H_PATCH] != p:  # nothing found: the best stays
+    if hit[H_PATCH] != p:  # nothing found: the best stays
         hit[H_TIN] = best
     return effort
 

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from .jit import njit
 
 # Ray record: origin, direction, 1/direction, t_min, threshold of detail T(t) = T0 + dT*t,
@@ -20,6 +22,27 @@ T_SLACK = 4.0 * 2.0 ** -52  # widen slab exits by a few float64 ulps: grazing ra
 # additions fold away (x + 0.0 turns -0.0 into 0.0, which LLVM must keep; only the sign of a
 # zero t could differ, and a walk only compares those)
 NO_SHIFT = -0.0
+
+
+@njit(cache=True, nogil=True, inline='always')
+def set_limit(hit, t_max):
+    """An empty hit record searched up to t_max: a limit, not a hit, so no box ties with it
+    (search_limit)."""
+    hit[H_TIN] = t_max
+    hit[H_PATCH] = -1.0
+
+
+@njit(cache=True, nogil=True, inline='always')
+def search_limit(hit, p):
+    """The tie rule: of hit boxes entered at the same t, the one of the lower leaf wins, whatever
+    order the leaves are searched in. So a search of leaf p runs up to the next float past the
+    best t where the best hit lies in a leaf above p (a box entered at the best t is a candidate),
+    else up to the best t; the walks let a box entered at the best t through. (Within a leaf the
+    first box found wins, in the search's own order.)"""
+    best = hit[H_TIN]
+    if hit[H_PATCH] > p and best < math.inf:
+        return np.nextafter(best, math.inf)
+    return best
 
 
 @njit(cache=True, nogil=True, inline='always')

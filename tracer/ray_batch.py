@@ -23,7 +23,7 @@ from .cone_search import make_cone_search
 from .drivers import make_search
 from .jit import njit, specialise
 from .kernel_channels import Outputs, allocate
-from .ray import H_PATCH, H_TIN, R_TMIN, make_ray, set_side
+from .ray import H_TIN, R_TMIN, make_ray, set_limit, set_side
 from .records import C_EFFORT, COUNTER_LEN, no_trace
 from .tile_kernel import _walk_of, tile_scratch, write_pixel
 from .variants import compiled, variant_for
@@ -49,8 +49,7 @@ def _trace_batch(rays, scene, q, leaf_patch, out, trace, scratch):
         r = rays[i]
         start_ray(rs.ray, r)
         t_max = r[RB_TMAX]
-        rs.hit[H_TIN] = t_max
-        rs.hit[H_PATCH] = -1.0  # a limit, not a hit: nothing ties with it (drivers._closest)
+        set_limit(rs.hit, t_max)
         for k in range(COUNTER_LEN):
             rs.counts[k] = 0
         walk(agg, lv, trims, rs.ray, rs.hit, q, sl, stack, trace, rs.counts)  # noqa: F821
@@ -124,8 +123,7 @@ def _penumbra_visit(p, ctx, trims, ray, hit, q, sl, trace):
     for j in range(first, first + ctx.count):
         r = ctx.samples[j]
         start_ray(ctx.ray, r)
-        ctx.hit[H_TIN] = r[RB_TMAX]
-        ctx.hit[H_PATCH] = -1.0
+        set_limit(ctx.hit, r[RB_TMAX])
         spent += search(p, ctx.leaves, ctx.trims, ctx.ray, ctx.hit, q, sl, trace)  # noqa: F821
         if ctx.hit[H_TIN] < r[RB_TMAX]:
             hit[H_TIN] = ray[R_TMIN]
@@ -152,8 +150,7 @@ def _trace_penumbra(rays, ctx, agg, q, lit, effort, trace, scratch):
         ctx.state[6] = ctx.state[5] * CONE_BOXES // MAX_NEAR
         for second in range(1 if ctx.state[3] == 1 else 2):
             start_ray(rs.ray, r)
-            rs.hit[H_TIN] = r[RB_TMAX]
-            rs.hit[H_PATCH] = -1.0
+            set_limit(rs.hit, r[RB_TMAX])
             for k in range(COUNTER_LEN):
                 rs.counts[k] = 0
             ctx.state[1] = second

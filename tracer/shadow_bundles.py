@@ -32,7 +32,7 @@ from .bundle import MAX_RAYS, ONE, ZERO, bundle_rays, make_bundle_search
 from .bundle_walk import make_bvh_bundle_walk
 from .jit import njit, specialise
 from .kernel_channels import Outputs, allocate
-from .ray import H_PATCH, H_TIN
+from .ray import H_TIN, set_limit
 from .ray_batch import RB_TMAX, start_ray
 from .records import C_EFFORT, COUNTER_LEN
 from .tile_kernel import working_slots, write_pixel
@@ -47,8 +47,7 @@ def load_bundle(rays, first, count, br):
     for j in range(count):
         r = rays[first + j]
         start_ray(br.rays[j], r)
-        br.hits[j, H_TIN] = r[RB_TMAX]
-        br.hits[j, H_PATCH] = -1.0  # a limit, not a hit: nothing ties with it (drivers._closest)
+        set_limit(br.hits[j], r[RB_TMAX])
         for k in range(COUNTER_LEN):
             br.counts[j, k] = 0
         active |= ONE << np.uint64(j)
