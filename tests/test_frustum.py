@@ -1,9 +1,11 @@
 """The bundle's bounds (tracer/frustum.py): a box they say every ray misses, every ray's own slab
 test misses; and they say so for most boxes clear of the bundle (seeded property test)."""
+import math
+
 import numpy as np
 
 from tracer.frustum import F_LEN, F_OK, bound_rays, misses_all
-from tracer.ray import RAY_LEN, make_ray, slab, slab_at
+from tracer.ray import R_TMIN, RAY_LEN, make_ray, slab, slab_at
 
 
 def _bundle(rng, origin_spread):
@@ -66,5 +68,5 @@ def test_slab_at_is_slab_on_the_shifted_corners():
         box = np.sort(rng.normal(size=(2, 3)), axis=0).ravel()
         f = rng.normal(size=3) * rng.choice([0.0, 1e-3, 1.0])
         want = slab(box, f[0], f[1], f[2], ray)
-        got = slab_at(*(box[c] + f[c % 3] for c in range(6)), ray)
+        got = slab_at(*(box[c] + f[c % 3] for c in range(6)), ray, ray[R_TMIN], math.inf)
         assert want[0] == got[0] and np.array_equal(np.array(want[1:]), np.array(got[1:]))

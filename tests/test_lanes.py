@@ -24,10 +24,10 @@ GROUPS = 2  # two groups of eight lanes: the group index is exercised too
 @functools.cache
 def _compiled():
     return dict(
-        slab=njit(lambda lanes, origin, g, c, tin, tout, row: L.slab_lanes(
-            lanes, origin, g, c[0], c[1], c[2], c[3], c[4], c[5], tin, tout, row)),
-        slab_no_out=njit(lambda lanes, origin, g, c, tin, row: L.slab_lanes(
-            lanes, origin, g, c[0], c[1], c[2], c[3], c[4], c[5], tin, None, row)),
+        slab=njit(lambda lanes, origin, g, c, tin, tout, row, start: L.slab_lanes(
+            lanes, origin, g, c[0], c[1], c[2], c[3], c[4], c[5], tin, tout, row, start, 0, start, 1)),
+        slab_no_out=njit(lambda lanes, origin, g, c, tin, row, start: L.slab_lanes(
+            lanes, origin, g, c[0], c[1], c[2], c[3], c[4], c[5], tin, None, row, start, 0, start, 1)),
         ahead=njit(lambda tin, row, lanes, g, bits: L.ahead_lanes(tin, row, lanes, g, bits)),
         at_start=njit(lambda tin, row, lanes, g, bits: L.at_start_lanes(tin, row, lanes, g, bits)),
         nearest=njit(lambda tin, row, g, bits: L.nearest_lanes(tin, row, g, bits)),
@@ -38,8 +38,10 @@ def _compiled():
 
 def _python():
     return dict(
-        slab=lambda lanes, origin, g, c, tin, tout, row: L.slab_lanes_python(lanes, origin, g, *c, tin, tout, row),
-        slab_no_out=lambda lanes, origin, g, c, tin, row: L.slab_lanes_python(lanes, origin, g, *c, tin, None, row),
+        slab=lambda lanes, origin, g, c, tin, tout, row, start: L.slab_lanes_python(lanes, origin, g, *c, tin, tout,
+                                                                                   row, start, 0, start, 1),
+        slab_no_out=lambda lanes, origin, g, c, tin, row, start: L.slab_lanes_python(lanes, origin, g, *c, tin, None,
+                                                                                     row, start, 0, start, 1),
         ahead=L.ahead_lanes_python, at_start=L.at_start_lanes_python, nearest=L.nearest_lanes_python,
         within_detail=L.within_detail_lanes_python, count=L.count_lanes_python)
 
@@ -102,8 +104,9 @@ def _bits(flags):
 
 @pytest.mark.interpreted
 def test_slab_lanes_are_the_scalar_slab_ray_by_ray():
-    """Each lane's verdict (meets the box before its closest hit) is slab_at's; where it meets,
-    its entry and exit t are slab_at's bits; lanes of other rays keep their verdict bit clear."""
+    """Each lane's verdicts (meets the box before its closest hit; meets it) are slab_at's within the lane's
+    interval (the ray's t_min and inf, or a parent's entry and exit); where it meets, its entry and
+    exit t are slab_at's bits; lanes of other rays keep their verdict bit clear."""
     rng = np.random.default_rng(71)
     count = L.WIDTH * GROUPS
     with np.errstate(all="ignore"):
@@ -112,20 +115,26 @@ def test_slab_lanes_are_the_scalar_slab_ray_by_ray():
             hits = np.where(rng.random(count) < 0.3, rng.uniform(0.0, 5.0, count), math.inf)
             lanes = _lanes_of(rays, hits)
             corners = _box(rng, rays)
+            start = np.full((2, lanes.shape[1]), math.inf)  # rows: the interval's start, its stop
+            start[0] = lanes[L.L_TMIN]
+            if case % 2:  # a parent's interval: its entry at or past t_min, its exit
+                start[0, :count] += np.where(rng.random(count) < 0.5, rng.uniform(0.0, 3.0, count), 0.0)
+                start[1, :count] = np.where(rng.random(count) < 0.5, rng.uniform(0.0, 6.0, count), math.inf)
             for origin in (L.L_O, L.L_PO):
                 moved = rays.copy()
                 moved[:, 0:3] = lanes[origin:origin + 3, :count].T
-                want = [slab_at(*corners, moved[r]) for r in range(count)]
+                want = [slab_at(*corners, moved[r], start[0, r], start[1, r]) for r in range(count)]
                 for kind in _kinds():
                     tin = np.full((3, lanes.shape[1]), np.nan)
                     tout = tin.copy()
                     for g in range(GROUPS):
-                        got = int(kind["slab"](lanes, origin, g, corners, tin, tout, 1))
-                        assert got == int(kind["slab_no_out"](lanes, origin, g, corners, tin.copy(), 1))
+                        got = int(kind["slab"](lanes, origin, g, corners, tin, tout, 1, start))
+                        assert got == int(kind["slab_no_out"](lanes, origin, g, corners, tin.copy(), 1, start))
                         for k in range(L.WIDTH):
                             r = L.WIDTH * g + k
                             ok, t_in, t_out = want[r]
                             assert bool(got >> k & 1) == (ok and t_in < hits[r]), (case, r, corners, moved[r])
+                            assert bool(got >> (L.WIDTH + k) & 1) == ok, (case, r)
                             if ok:
                                 assert np.float64(tin[1, r]).tobytes() == np.float64(t_in).tobytes(), (case, r)
                                 assert np.float64(tout[1, r]).tobytes() == np.float64(t_out).tobytes(), (case, r)

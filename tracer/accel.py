@@ -37,8 +37,17 @@ def parameters(opts) -> tuple:
     if opts.accel == "kdtree":
         return (("kd_depth", int(opts.kd_depth)), ("kd_split", opts.kd_split))
     if opts.accel == "grid":
-        return (("grid_scale", float(opts.grid_scale)),)
+        return (("grid_scale", float(opts.grid_scale)), ("registration", registration(opts)))
     return ()
+
+
+def registration(opts) -> str:
+    """How the grid registers a leaf (grid.build_grid): 'quarters' (Lischinski's l_a, the box's
+    quarters where it is large) under the float and mantissa criteria, whose hit boxes hug the
+    surface; 'boxes' (the leaf's whole box in every voxel it overlaps) under fixed and adaptive,
+    whose coarse hit boxes reach voxels the quarters miss: a walk that skipped those would report
+    another hit than the BVH's."""
+    return "quarters" if opts.criterion in ("float", "mantissa") else "boxes"
 
 
 def describe(opts) -> str:
@@ -51,7 +60,7 @@ def build_structure(geom, opts):
     """A new kd-tree (kdtree.KdTree) or grid (grid.Grid) over geom's leaves, as opts ask; no cache."""
     if opts.accel == "kdtree":
         return build_kdtree(geom.leaf_box, opts.kd_depth, opts.kd_split)
-    return build_grid(geom, opts.grid_scale)
+    return build_grid(geom, opts.grid_scale, registration(opts) == "quarters")
 
 
 def _forget(key):

@@ -6,10 +6,13 @@ a ray drops out where it misses a box, where its own closest hit prunes the box,
 hull tests drop a half for it. Each ray keeps its own hit, its own criterion (its threshold of
 detail, its hit box on the grid) and its own counters, so what a ray reports is what it would
 report alone: the boxes are the same, split in the same direction (the box alone decides it
-under the `length` split and the float, fixed and mantissa criteria; otherwise the first ray
-still active decides for the bundle), tested by the same steps. Only the order in which the
-bundle visits two halves both of its rays meet differs (the half nearer to the bundle's nearest
-ray first), which can change which of two boxes holding a crossing at the same t is reported.
+under the `length` split, whatever the criterion: the adaptive criterion's shrink test reads the
+box's own measure; with `cross` the first ray still active decides for the bundle), tested by the
+same steps. Only the order in which the bundle visits two halves both of its rays meet differs
+(the half nearer to the bundle's nearest ray first), and no order decides a hit: the tie rule
+(ray.search_limit, ray.before_best) picks the same box among those entered at the same t. The
+lanes prune by t alone, so within the best hit's own leaf they let a box entered at the best t
+through (lane_limit), and the report asks the key.
 
 The bundle walks the BVH as one (bundle_walk.py). The slab tests of sub-patch boxes, the prune by
 each ray's closest hit, the nearest entry and the adaptive criterion's threshold go eight rays at a time (lanes.py: the rays'
@@ -28,9 +31,9 @@ import numpy as np
 from .drivers import WIDE_BITS, wide_leaves, wide_slots
 from .frustum import F_LEN
 from .jit import njit, specialise
-from .lanes import L_BEST, L_HIT, L_LEN, L_PO, WIDTH, ahead_lanes, at_start_lanes
+from .lanes import L_BEST, L_FAR, L_HIT, L_LEN, L_PO, L_TMIN, WIDTH, ahead_lanes, at_start_lanes
 from .lanes import count_lanes, nearest_lanes, padded, slab_lanes, within_detail_lanes
-from .ray import H_PATCH, H_TIN, RAY_LEN, R_O, R_TMIN, search_limit
+from .ray import H_PATCH, H_TIN, RAY_LEN, R_O, R_TMIN, before_best, search_limit
 from .records import C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT
 from .search_steps import ADAPTIVE, GRID_PREFILTER, halve, hull_accepts, judge_known, near_and_far, report, root_at
 from .search_steps import tighten, trim_accepts, trim_state
@@ -106,13 +109,18 @@ def _corners(sl, s):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _slot_rays(sl, s, pa, br, row, g, bits):
-    """The rays of group g in bits (the group's low bits) against slot s's box, eight at a time:
-    their intervals into tin[row], tout[row]; those that meet it before their own closest hit
-    (and not wholly behind the side plane of a ray whose origin it holds, as
-    search_steps.open_child drops it for the single ray)."""
+def _slot_rays(sl, s, pa, br, row, g, bits, start, start_row, stop, stop_row):
+    """The rays of group g in bits (the group's low bits) against slot s's box, eight at a time,
+    each within [start[start_row], stop[stop_row]] (the parent's interval, or the rays' t_min and
+    inf at a root: subpatch.open_box): their intervals into tin[row], tout[row]. Returns (the
+    rays that meet it before their own closest hit's limit, those that meet it at all), less those
+    wholly behind the side plane of a ray whose origin it holds, as search_steps.open_child drops
+    it for the single ray."""
     lo0, lo1, lo2, hi0, hi1, hi2 = _corners(sl, s)
-    met = slab_lanes(br.lanes, L_PO, g, lo0, lo1, lo2, hi0, hi1, hi2, br.tin, br.tout, row) & bits
+    both = slab_lanes(br.lanes, L_PO, g, lo0, lo1, lo2, hi0, hi1, hi2, br.tin, br.tout, row, start, start_row, stop,
+                      stop_row)
+    alive = both & bits
+    met = (both >> np.uint64(WIDTH)) & bits
     start = at_start_lanes(br.tin, row, br.lanes, g, met)
     shift = np.uint64(WIDTH * g)
     while start != ZERO:  # boxes that hold a ray's origin: the single ray's side-plane test
@@ -121,35 +129,43 @@ def _slot_rays(sl, s, pa, br, row, g, bits):
         r = np.int64(shift) + k
         if hull_behind(sl, s, pa, br.lrays[r]):
             met &= ~bit(k)
-    return met
+            alive &= ~bit(k)
+    return alive, met
 
 
 @njit(cache=True, nogil=True, inline='always')
-def open_rays(sl, s, pa, br, row, m):
-    """Slab-test slot s's box against the rays of m (intervals into tin[row], tout[row]); the
-    rays that meet it before their own closest hit (and are not behind it: _slot_rays)."""
+def open_root(sl, s, pa, br, row, m):
+    """Slab-test root slot s's box against the rays of m from their t_min (intervals into
+    tin[row], tout[row]); the rays that meet it before their own closest hit (and are not behind
+    it: _slot_rays)."""
     alive = ZERO
     for g in range(br.lanes.shape[1] // WIDTH):
         bits = group_bits(m, g)
         if bits != ZERO:
-            alive |= _slot_rays(sl, s, pa, br, row, g, bits) << np.uint64(WIDTH * g)
+            kept, _ = _slot_rays(sl, s, pa, br, row, g, bits, br.lanes, L_TMIN, br.lanes, L_FAR)
+            alive |= kept << np.uint64(WIDTH * g)
     return alive
 
 
 @njit(cache=True, nogil=True, inline='always')
 def open_pair(sl, a, b, pa, br, row_a, row_b, m):
-    """open_rays for the halves a and b, group by group; the rays of each half. (The bundle's
-    bounds, frustum.py, rarely reject a half: counted on the teapot, 12 % of the halves tested by
-    four rays or more, saving less than they cost.)"""
+    """The halves a and b against the rays of m, group by group, within their parent's intervals,
+    which row_a holds until a's own overwrite them (b's first): (the rays of each half, the rays that
+    meet both boxes). (The bundle's bounds, frustum.py, rarely reject a half: counted on the teapot,
+    12 % of the halves tested by four rays or more, saving less than they cost.)"""
     alive_a = ZERO
     alive_b = ZERO
+    met_both = ZERO
     for g in range(br.lanes.shape[1] // WIDTH):
         bits = group_bits(m, g)
         if bits != ZERO:
             shift = np.uint64(WIDTH * g)
-            alive_a |= _slot_rays(sl, a, pa, br, row_a, g, bits) << shift
-            alive_b |= _slot_rays(sl, b, pa, br, row_b, g, bits) << shift
-    return alive_a, alive_b
+            kept_b, met_b = _slot_rays(sl, b, pa, br, row_b, g, bits, br.tin, row_a, br.tout, row_a)
+            kept_a, met_a = _slot_rays(sl, a, pa, br, row_a, g, bits, br.tin, row_a, br.tout, row_a)
+            alive_a |= kept_a << shift
+            alive_b |= kept_b << shift
+            met_both |= (met_a & met_b) << shift
+    return alive_a, alive_b, met_both
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -180,23 +196,37 @@ def ahead_in(tin, br, row, m, count_nodes):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _alone(sl, s, pa, lr, hit):
-    """Slot s's box against one ray (its interval into the slot, as the single ray's search tests
-    it): does the ray meet it before its closest hit, and not only behind its side plane? 1 or 0
-    (open_rays for a mask of one ray)"""
-    alive, _ = open_box(sl, s, lr, hit[H_TIN])
-    return 1 if alive and not (sl.mf[s, M_TIN] <= lr[R_TMIN] and hull_behind(sl, s, pa, lr)) else 0
+def _alone(sl, s, pa, lr, hit, t_start, t_stop):
+    """Slot s's box against one ray within its parent's interval (its interval into the slot,
+    as the single ray's search tests it): (alive, met), 1 or 0, as search_steps.open_child (open_pair
+    for a mask of one ray)"""
+    alive, ok = open_box(sl, s, lr, t_start, t_stop, hit, pa.p)
+    if ok and sl.mf[s, M_TIN] <= lr[R_TMIN] and hull_behind(sl, s, pa, lr):
+        alive = ok = False
+    return 1 if alive else 0, 1 if ok else 0
+
+
+@njit(cache=True, nogil=True, inline='always')
+def lane_limit(hit, p):
+    """A ray's limit in the lanes (L_HIT), which prune by t alone, in a search of leaf p: its
+    search limit, or the next float past it where its best hit lies in p itself (there a box
+    entered at the best t may hold a lower corner: the lanes let it through, ray.before_best
+    decides at the report)."""
+    t = hit[H_TIN]
+    if hit[H_PATCH] == p and t < np.inf:
+        return np.nextafter(t, np.inf)
+    return t
 
 
 @njit(cache=True, nogil=True, inline='always')
 def push_halves(sl, a, b, sp, pa, br, go, direction):
     """The halves a and b (b past the seam) at stack positions sp and sp + 1 for the rays of `go`:
-    each ray's intervals, the single ray's hull tests where it meets both, the bundle's nearer
-    half on top. Returns the new stack height and the halves no ray keeps (-1 for none)."""
+    each ray's intervals, the single ray's hull tests where it meets both boxes (search_steps.near_and_far),
+    the bundle's nearer half on top. Returns the new stack height and the halves no ray keeps (-1 for none)."""
     row_a = br.row[sp]
     row_b = br.row[sp + 1]
-    keep_a, keep_b = open_pair(sl, a, b, pa, br, row_a, row_b, go)
-    both = keep_a & keep_b
+    keep_a, keep_b, met_both = open_pair(sl, a, b, pa, br, row_a, row_b, go)
+    both = met_both & (keep_a | keep_b)
     while both != ZERO:  # as sort_halves: the far half across the seam plane and the ray's planes first
         r = lowest_bit(both)
         both &= both - ONE
@@ -255,31 +285,30 @@ def _within_detail(br, row, m, size):
 def _judge_detail(sl, a, pa, lv, q, br, row, live):
     """search_steps.judge_known under the adaptive criterion for each ray of `live` in slot a
     (its entry t in tin[row]), as masks: (the rays that stop, those that go on, the first ray that
-    goes on (0 for none), its criterion diameter and whether the box shrank by it). A ray needs
-    the grid box's diameter g where d is within its limit (the prefilter's, or its threshold);
-    the box is then judged by g for it, else by d."""
+    goes on (0 for none), the box's criterion diameter and whether the box shrank by it: the same
+    for every ray). A ray needs the grid box's diameter g where d is within its limit (the
+    prefilter's, or its threshold); it stops by g then, else by d."""
     mf = sl.mf
     d = mf[a, M_D]
+    on_grid = d <= GRID_PREFILTER * mf[a, M_GULP]
     # (a select and a pass over the lanes, not a branch on the prefilter: measured 5-8 % faster)
-    need = (_all_if(d <= GRID_PREFILTER * mf[a, M_GULP]) | _within_detail(br, row, live, d)) & live
+    need = (_all_if(on_grid) | _within_detail(br, row, live, d)) & live
     g = -1.0
     crit = ZERO
     if need != ZERO:
         g = grid_l1(sl, a, lv.grid, pa.p)
         crit = _within_detail(br, row, need, g)  # d > the threshold where g is not needed
-    large = _all_if(d > 1.0625 * mf[a, M_W])
-    parent = mf[a, M_DPAR] * pa.shrink_factor
-    shrank = ((need & _all_if(g < parent)) | (~need & _all_if(d < parent))) & large
+    d_box = g if on_grid else d  # (on_grid: every ray needed g)
+    shrank = d_box < mf[a, M_DPAR] * pa.shrink_factor and d > 1.0625 * mf[a, M_W]
     stop = crit
     if sl.mi[a, I_DEPTH] >= q.max_depth or mf[a, M_U0] == mf[a, M_U1] or mf[a, M_V0] == mf[a, M_V1]:
         stop = live  # the depth cap, or an interval that can no longer halve
-    if sl.mi[a, I_STALLED] == 1:  # stalled: a box that did not shrink again stops (a rational one
-        stop |= ~shrank & (need | _all_if(not pa.rational))  # only within its limit)
+    if sl.mi[a, I_STALLED] == 1 and not shrank:  # stalled: a box that did not shrink again stops
+        stop |= need | _all_if(not pa.rational)  # (a rational one only within its limit)
     stop &= live
     go = live & ~stop
     first_ray = lowest_bit(go) if go != ZERO else 0
-    first = bit(first_ray) & go
-    return stop, go, first_ray, g if (need & first) != ZERO else d, (shrank & first) != ZERO
+    return stop, go, first_ray, d_box, shrank
 
 
 def _solo_search(sl, start, pa, lv, trims, q, br, r, base, free, nfree):
@@ -295,15 +324,16 @@ def _solo_search(sl, start, pa, lv, trims, q, br, r, base, free, nfree):
     stack = br.slot
     stack[base] = start
     top = base + 1
-    checked = True  # a passed the bundle's own prune and trim tests
+    checked = True  # a passed the bundle's own trim test (its prune lets ties within the leaf through)
     while top > base:
         top -= 1
         a = stack[top]
-        if not checked:
-            if mf[a, M_TIN] >= hit[H_TIN] or (HAS_TRIMS and trim_state(sl, a, pa, trims) < 0):  # noqa: F821
-                free[nfree] = a
-                nfree += 1
-                continue
+        if not before_best(mf[a, M_TIN], mf[a, M_U0], mf[a, M_V0], hit, pa.p) or (
+                HAS_TRIMS and not checked and trim_state(sl, a, pa, trims) < 0):  # noqa: F821
+            free[nfree] = a
+            nfree += 1
+            checked = False
+            continue
         checked = False
         stop, d_crit, shrank, _ = judge_known(sl, a, pa, lv, lr, q, -1.0)
         if stop:
@@ -313,13 +343,16 @@ def _solo_search(sl, start, pa, lv, trims, q, br, r, base, free, nfree):
             nfree += 1
             continue
         br.counts[r, C_EFFORT] += 2
+        t_start = mf[a, M_TIN]
+        t_stop = mf[a, M_TOUT]
         tighten(sl, a, pa, lv)
         nfree -= 1
         b = free[nfree]
         direction = halve(sl, a, b, pa, lr, q, d_crit, shrank, HAS_GENERAL)  # noqa: F821
-        alive_a = _alone(sl, a, pa, lr, hit)
-        alive_b = _alone(sl, b, pa, lr, hit)
-        far, near, alive_far, alive_near, _ = near_and_far(sl, a, b, pa, lr, direction, alive_a, alive_b)
+        alive_a, met_a = _alone(sl, a, pa, lr, hit, t_start, t_stop)
+        alive_b, met_b = _alone(sl, b, pa, lr, hit, t_start, t_stop)
+        far, near, alive_far, alive_near, _ = near_and_far(sl, a, b, pa, lr, direction, alive_a, alive_b,
+                                                           met_a & met_b)
         for half, alive in ((far, alive_far), (near, alive_near)):  # the near half on top
             if alive:
                 stack[top] = half
@@ -369,7 +402,7 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
         root_at(sl, s, pa, lv)
     add_count(br.counts, active, C_EFFORT, 1)
     br.slot[0] = s
-    br.mask[0] = open_rays(sl, s, pa, br, br.row[0], active)
+    br.mask[0] = open_root(sl, s, pa, br, br.row[0], active)
     sp = 1 if br.mask[0] != ZERO else 0
     while sp > 0:
         sp -= 1
@@ -388,7 +421,7 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
                 sl.mf[a, M_TIN] = br.tin[row, r]
                 sl.mf[a, M_TOUT] = br.tout[row, r]
                 nfree = solo(sl, a, pa, lv, trims, q, br, r, sp, free, nfree)  # noqa: F821
-                br.lanes[L_HIT, r] = br.hits[r, H_TIN]
+                br.lanes[L_HIT, r] = lane_limit(br.hits[r], pa.p)
                 continue
         # The criterion is judged once for the box where it reads no ray; under adaptive, for
         # each ray (its threshold at its entry t), eight at a time.
@@ -404,14 +437,16 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
         while m != ZERO:
             r = lowest_bit(m)
             m &= m - ONE
-            if hull_accepts(sl, a, pa, br.lrays[r], q):
+            # (the lanes let a box entered at the best t within its leaf through: the key decides)
+            if before_best(br.tin[row, r], sl.mf[a, M_U0], sl.mf[a, M_V0], br.hits[r], pa.p) and hull_accepts(
+                    sl, a, pa, br.lrays[r], q):
                 if HAS_TRIMS and kept < 0:  # noqa: F821
                     kept = 1 if trim_accepts(sl, a, pa, trims) else 0
                 if kept != 0:
                     sl.mf[a, M_TIN] = br.tin[row, r]  # report reads the ray's interval from the slot
                     sl.mf[a, M_TOUT] = br.tout[row, r]
                     report(br.hits[r], sl, a, pa, lv)
-                    br.lanes[L_HIT, r] = br.hits[r, H_TIN]
+                    br.lanes[L_HIT, r] = lane_limit(br.hits[r], pa.p)
         if go == ZERO:
             if not cached:
                 free[nfree] = a
@@ -479,7 +514,7 @@ def _closest_rays(p, lv, trims, q, sl, br, active):
         m &= m - ONE
         br.lanes[L_BEST, r] = br.hits[r, H_TIN]
         br.hits[r, H_TIN] = search_limit(br.hits[r], p)
-        br.lanes[L_HIT, r] = br.hits[r, H_TIN]
+        br.lanes[L_HIT, r] = lane_limit(br.hits[r], p)
     search(p, lv, trims, q, sl, br, active)  # noqa: F821
     m = active
     while m != ZERO:

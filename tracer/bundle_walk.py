@@ -4,6 +4,8 @@ ray's interval into a node in a row of node_tin, and its counters stay in lanes 
 ends; each visited leaf's patches are searched for the rays that reach it."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .aggregate import BvhNodes  # noqa: F401 (the record the walk reads)
@@ -11,7 +13,7 @@ from .bundle import (ONE, W_BOX_TESTS, W_NODES, W_PATCHES, W_SURFACES, ZERO, ahe
                      nearest_in)
 from .frustum import MIN_RAYS, at_least, bound_rays, misses_all
 from .jit import njit, specialise
-from .lanes import L_D, L_DT, L_HIT, L_INV, L_O, L_T0, L_TMIN, WIDTH, count_lanes, slab_lanes
+from .lanes import L_D, L_DT, L_FAR, L_HIT, L_INV, L_O, L_T0, L_TMIN, WIDTH, count_lanes, slab_lanes
 from .ray import H_TIN, R_D, R_DT, R_INV, R_O, R_T0, R_TMIN
 from .records import C_BOX_TESTS, C_NODES, C_PATCHES, C_SURFACES
 
@@ -41,6 +43,7 @@ def _load_lanes(br, m):
             lanes[L_D + c, r] = ray[R_D + c]
             lanes[L_INV + c, r] = ray[R_INV + c]
         lanes[L_TMIN, r] = ray[R_TMIN]
+        lanes[L_FAR, r] = math.inf
         lanes[L_HIT, r] = np.nextafter(br.hits[r, H_TIN], np.inf)  # the walk lets ties through (ray.search_limit)
         lanes[L_T0, r] = ray[R_T0]
         lanes[L_DT, r] = ray[R_DT]
@@ -77,7 +80,8 @@ def _node_rays(node_box, node, br, row, m):
     for g in range(br.lanes.shape[1] // WIDTH):
         bits = group_bits(m, g)
         if bits != ZERO:
-            met = slab_lanes(br.lanes, L_O, g, lo0, lo1, lo2, hi0, hi1, hi2, br.node_tin, None, row) & bits
+            met = slab_lanes(br.lanes, L_O, g, lo0, lo1, lo2, hi0, hi1, hi2, br.node_tin, None, row, br.lanes,
+                             L_TMIN, br.lanes, L_FAR) & bits
             alive |= met << np.uint64(WIDTH * g)
     return alive
 
@@ -107,9 +111,13 @@ def _children_rays(node_box, left, right, br, row_l, row_r, m, surfaces):
             count_lanes(br.walk_counts, W_SURFACES, g, bits, surfaces)
         shift = np.uint64(WIDTH * g)
         if test_l:
-            alive_l |= (slab_lanes(lanes, L_O, g, l0, l1, l2, l3, l4, l5, br.node_tin, None, row_l) & bits) << shift
+            alive_l |= (slab_lanes(lanes, L_O, g, l0, l1, l2, l3, l4, l5, br.node_tin, None, row_l, lanes, L_TMIN,
+                                    lanes, L_FAR)
+                        & bits) << shift
         if test_r:
-            alive_r |= (slab_lanes(lanes, L_O, g, r0, r1, r2, r3, r4, r5, br.node_tin, None, row_r) & bits) << shift
+            alive_r |= (slab_lanes(lanes, L_O, g, r0, r1, r2, r3, r4, r5, br.node_tin, None, row_r, lanes, L_TMIN,
+                                    lanes, L_FAR)
+                        & bits) << shift
     return alive_l, alive_r
 
 

@@ -4,9 +4,11 @@ crosses, near to far, each cell's patches handed to the patch search.
 Both share the visit of a cell (`_visit_cell`), in one of two ways (the record's `mailbox`, a run-
 time flag: the check costs nothing next to a search, and one compiled walk serves both):
   clamped  (default; Dammertz's kd-tree, no mailbox) each cell searches its patches with the ray
-           clamped to the cell: ray[R_TMIN] the cell's entry, the search's t_max (hit[H_TIN]) the
-           nearer of the best hit and the cell's exit; both are restored afterwards unless a
-           search found a hit, which is then the best hit so far;
+           clamped to the cell: a box must reach the cell's entry (ray[R_REACH]) and begin before
+           the search's t_max (hit[H_TIN]), the nearer of the best hit and the cell's exit; both
+           are restored afterwards unless a search found a hit, which is then the best hit so far.
+           The ray's t_min stays: a box's entry t, where the adaptive criterion reads the
+           threshold of detail and the tie rule compares hits, is the same in every cell;
   mailbox  (Lischinski) each patch is searched once per ray, along the whole ray: a per-thread
            array holds the last ray id that met each patch, ids counted per thread in the scratch.
 Either way the walk ends at the first cell that begins after the best hit so far (Lischinski's
@@ -28,7 +30,7 @@ from __future__ import annotations
 import math
 
 from .jit import njit, specialise
-from .ray import H_PATCH, H_TIN, R_BUDGET, R_D, R_INV, R_O, R_TMIN, slab
+from .ray import H_PATCH, H_TIN, R_BUDGET, R_D, R_INV, R_O, R_REACH, slab
 from .records import C_BOX_TESTS, C_EFFORT, C_NODES, C_PATCHES, C_SURFACES, C_UNRESOLVED
 
 GO_ON, STOP = 0, 1
@@ -38,14 +40,14 @@ CELL_SLACK = 2.0 ** -40  # relative to the coordinates: far above the rounding o
 def _visit_cell(agg, first, count, t_enter, t_exit, lv, trims, ray, hit, q, sl, ws, trace, counts):
     """Search the patches agg.items[first:first + count] of a cell whose (widened) interval along the
     ray is [t_enter, t_exit]; returns STOP when the walk must end (budget, or any hit found)."""
-    t_min = ray[R_TMIN]
+    reach = ray[R_REACH]
     best = hit[H_TIN]
     best_patch = hit[H_PATCH]
     limit = best
     ray_id = ws.ray_id[0]
     if not agg.mailbox:
         limit = min(best, t_exit)
-        ray[R_TMIN] = max(t_min, t_enter)
+        ray[R_REACH] = max(reach, t_enter)
         hit[H_TIN] = limit
         if limit < best:  # the cell's exit, not a hit: no leaf may tie with it (ray.search_limit)
             hit[H_PATCH] = -1.0
@@ -57,8 +59,8 @@ def _visit_cell(agg, first, count, t_enter, t_exit, lv, trims, ray, hit, q, sl, 
             ws.mailbox[p] = ray_id
         counts[C_SURFACES] += 1
         counts[C_BOX_TESTS] += 1
-        ok, t_box, _ = slab(agg.patch_box[p], 0.0, 0.0, 0.0, ray)
-        if not ok or t_box > hit[H_TIN]:
+        ok, t_box, t_leave = slab(agg.patch_box[p], 0.0, 0.0, 0.0, ray)
+        if not ok or t_box > hit[H_TIN] or t_leave < ray[R_REACH]:
             continue
         counts[C_PATCHES] += 1
         spent = search(p, lv, trims, ray, hit, q, sl, trace)  # noqa: F821
@@ -69,7 +71,7 @@ def _visit_cell(agg, first, count, t_enter, t_exit, lv, trims, ray, hit, q, sl, 
         ray[R_BUDGET] -= spent
         if STOP_AT_FIRST and hit[H_TIN] < limit:  # noqa: F821
             break
-    ray[R_TMIN] = t_min
+    ray[R_REACH] = reach
     if hit[H_TIN] >= limit:  # nothing found here (or a tie with the best, the best now): the clamp goes
         hit[H_TIN] = best
         if limit < best:

@@ -14,15 +14,17 @@ them inside the loop (a fifth of the search time).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .jit import njit, specialise
 
-from .ray import H_PATCH, H_TIN, R_BUDGET, search_limit
+from .ray import H_PATCH, H_TIN, R_BUDGET, R_TMIN, search_limit
 from .records import Leaves, Slots
-from .search_steps import HIT, MISS, PRUNED, accept, enter_frame, halve, judge, open_child, report, root, root_at
+from .search_steps import HIT, MISS, PRUNED, accept, ahead, enter_frame, halve, judge, open_child, report, root, root_at
 from .search_steps import set_event, sort_halves, subdivide, tighten, trace_hit, trim_state
-from .subpatch import I_DEPTH, I_LAST, I_STALLED, M_DPAR, M_TIN, patch_info
+from .subpatch import I_DEPTH, I_LAST, I_STALLED, M_DPAR, M_TIN, M_TOUT, patch_info
 from .surface_cache import S_DEPTH, S_FIRST, S_HITS, S_MISSES, copy_slot, keep_halves, take_pair, touch
 
 WIDE_BITS = 53  # rational patches are searched in float64 slots whatever the working precision
@@ -35,11 +37,11 @@ def _search(p, lv, trims, ray, hit, q, sl, trace):
     s = root(sl, pa, lv)
     effort = 1
     budget = ray[R_BUDGET]
-    sp = open_child(sl, s, pa, lv, lray, hit[H_TIN], trace, TRACING)  # noqa: F821
+    sp, _ = open_child(sl, s, pa, lv, lray, lray[R_TMIN], math.inf, hit, trace, TRACING)  # noqa: F821
     while sp > 0 and effort < budget:
         sp -= 1
         a = sl.order[sp]
-        if sl.mf[a, M_TIN] >= hit[H_TIN]:
+        if not ahead(sl, a, pa, hit):
             if TRACING:  # noqa: F821
                 set_event(trace, sl, a, PRUNED)
             continue
@@ -60,7 +62,7 @@ def _search(p, lv, trims, ray, hit, q, sl, trace):
                     return effort
             continue
         tighten(sl, a, pa, lv)
-        sp = subdivide(sl, a, sp, pa, lv, lray, q, hit[H_TIN], d_crit, shrank, trace, TRACING,  # noqa: F821
+        sp = subdivide(sl, a, sp, pa, lv, lray, q, hit, d_crit, shrank, trace, TRACING,  # noqa: F821
                        HAS_GENERAL)  # noqa: F821
         effort += 2
     return effort
@@ -112,14 +114,14 @@ def _cached_search(p, lv, trims, ray, hit, q, sl, trace):
     effort = 1
     budget = ray[R_BUDGET]
     sp = 0
-    if open_child(sl, s, pa, lv, lray, hit[H_TIN], trace, False):
+    if open_child(sl, s, pa, lv, lray, lray[R_TMIN], math.inf, hit, trace, False)[0]:
         stack[0] = s
         sp = 1
     while sp > 0 and effort < budget:
         sp -= 1
         a = stack[sp]
         cached = a >= first
-        if mf[a, M_TIN] >= hit[H_TIN] or (HAS_TRIMS and trim_state(sl, a, pa, trims) < 0):  # noqa: F821
+        if not ahead(sl, a, pa, hit) or (HAS_TRIMS and trim_state(sl, a, pa, trims) < 0):  # noqa: F821
             if not cached:
                 free[nfree] = a
                 nfree += 1
@@ -135,6 +137,8 @@ def _cached_search(p, lv, trims, ray, hit, q, sl, trace):
                 nfree += 1
             continue
         effort += 2
+        t_start = mf[a, M_TIN]  # the halves' intervals lie within their parent's
+        t_stop = mf[a, M_TOUT]
         if WIDE:  # noqa: F821 (float64 slots, general degree: a copy of the halving in each branch)
             kid = -1
             if cached and sl.mi[a, I_DEPTH] < cache.state[S_DEPTH]:
@@ -150,12 +154,13 @@ def _cached_search(p, lv, trims, ray, hit, q, sl, trace):
                     mf[c, M_DPAR] = d_crit
                     sl.mi[c, I_STALLED] = 0 if shrank else 1
                 far, near, alive_far, alive_near = sort_halves(sl, np.uint32(kid), np.uint32(kid + 1), pa, lv, lray,
-                                                               hit[H_TIN], sl.mi[kid, I_LAST], trace, False)
+                                                               t_start, t_stop, hit, sl.mi[kid, I_LAST], trace,
+                                                               False)
             else:  # computed halves in working slots
                 a, b, direction, nfree = _halve_working(sl, a, cached, pa, lv, lray, q, d_crit, shrank, free, nfree,
                                                         ncoord, HAS_GENERAL)  # noqa: F821
-                far, near, alive_far, alive_near = sort_halves(sl, a, b, pa, lv, lray, hit[H_TIN], direction, trace,
-                                                               False)
+                far, near, alive_far, alive_near = sort_halves(sl, a, b, pa, lv, lray, t_start, t_stop, hit,
+                                                               direction, trace, False)
                 for c, alive in ((far, alive_far), (near, alive_near)):
                     if not alive:
                         free[nfree] = c
@@ -185,7 +190,8 @@ def _cached_search(p, lv, trims, ray, hit, q, sl, trace):
                     b = np.uint32(kid + 1)
             # One inlined copy of the halving and of sort_halves for cached and computed halves: with
             # a copy in each branch the teapot's float frame with the cache took 0.83 s, not 0.64 s.
-            far, near, alive_far, alive_near = sort_halves(sl, a, b, pa, lv, lray, hit[H_TIN], direction, trace, False)
+            far, near, alive_far, alive_near = sort_halves(sl, a, b, pa, lv, lray, t_start, t_stop, hit, direction,
+                                                           trace, False)
             if kid < 0:
                 for c, alive in ((far, alive_far), (near, alive_near)):
                     if not alive:

@@ -17,6 +17,11 @@ with a further CELL_SLACK of the scene's coordinates. Splitting stops early wher
 single voxel (its quarters could only name that one) and at MAX_LEVELS (the whole box is then
 registered). A voxel lists a patch once.
 
+The quarters hold the true surface, not every box a search computes: under a coarse criterion
+(fixed, adaptive) a hit box can reach voxels where its leaf's quarters are not registered, and the
+walk would miss a hit the BVH reports. The grid built for those criteria registers each leaf's
+whole box instead (build_grid's `quarters`, accel.registration).
+
 Cells: cell (ix, iy, iz) has index (iz * ny + iy) * nx + ix; its patches are
 items[cell_start[c]:cell_start[c + 1]], in increasing order. Built by a compiled kernel.
 """
@@ -76,8 +81,9 @@ def resolution(extent: np.ndarray, voxel: float):
     return np.array([max(1, math.ceil(min(e / voxel, MAX_CELLS))) for e in extent], np.int64)
 
 
-def build_grid(geom, grid_scale: float = 1.0) -> Grid:
-    """The grid over geom's leaves (geometry.Geometry), its resolution Lischinski's times grid_scale."""
+def build_grid(geom, grid_scale: float = 1.0, quarters: bool = True) -> Grid:
+    """The grid over geom's leaves (geometry.Geometry), its resolution Lischinski's times grid_scale;
+    quarters: Lischinski's registration (the module docstring), else every leaf's whole box."""
     if not (grid_scale > 0.0 and math.isfinite(grid_scale)):
         raise ValueError(f"grid_scale must be a positive number, got {grid_scale!r}")
     boxes = np.ascontiguousarray(geom.leaf_box, np.float64)
@@ -100,7 +106,7 @@ def build_grid(geom, grid_scale: float = 1.0) -> Grid:
             continue
         cell = extent / dims
         n_items, cell_start, items = _register(geom.ctrl64, geom.pstart, geom.deg_u, geom.deg_v, geom.frame, pads,
-                                               boxes, lo, cell, dims, voxel, slack, MAX_ITEMS)
+                                               boxes, lo, cell, dims, voxel, slack, MAX_ITEMS, quarters)
         if n_items >= 0:
             break
         voxel = max(voxel, float(cell.max())) * 2.0 ** (1.0 / 3.0)  # too many registrations: coarser
@@ -128,9 +134,10 @@ def _halve(src, deg, stride, n_curves, curve_step, left, right, work):
 
 
 @njit(cache=True, nogil=True)
-def _register(ctrl, pstart, deg_u, deg_v, frame, pad, leaf_box, lo, cell, dims, voxel, slack, max_items):
-    """Register every leaf in its voxels (l_a with k = 2, see the module docstring); returns
-    (registrations, cell_start (cells + 1,) int64, items), or (-1, ...) past max_items.
+def _register(ctrl, pstart, deg_u, deg_v, frame, pad, leaf_box, lo, cell, dims, voxel, slack, max_items, quarters):
+    """Register every leaf in its voxels (l_a with k = 2, see the module docstring; quarters False:
+    the leaf's whole box); returns (registrations, cell_start (cells + 1,) int64, items), or (-1, ...)
+    past max_items.
 
     Boxes are small against Lischinski's one voxel side `voxel`, not against the cells' sides: an
     axis where the scene is flat has one cell as thin as the scene, which no padded box undercuts
@@ -189,7 +196,7 @@ def _register(ctrl, pstart, deg_u, deg_v, frame, pad, leaf_box, lo, cell, dims, 
                 i1[a] = int(min(max(math.floor(v1), 0.0), dims[a] - 1.0))
                 small = small and bx[3 + a] - bx[a] < voxel / K
                 single = single and i0[a] == i1[a]
-            if small or single or lev >= MAX_LEVELS:
+            if small or single or lev >= MAX_LEVELS or not quarters:
                 for iz in range(i0[2], i1[2] + 1):
                     for iy in range(i0[1], i1[1] + 1):
                         for ix in range(i0[0], i1[0] + 1):

@@ -26,9 +26,10 @@ WIDTH = 8
 # lanes rows: origin xyz, direction xyz, 1 / direction xyz, t_min, the ray's closest hit's entry t,
 # the origin in the frame of the patch being searched (bundle.lrays), the threshold of detail at t = 0
 # and its growth per unit t (ray.R_T0, R_DT: the adaptive criterion's), the closest hit's entry t
-# kept while a search bumps it (bundle._closest_rays)
-L_O, L_D, L_INV, L_TMIN, L_HIT, L_PO, L_T0, L_DT, L_BEST = 0, 3, 6, 9, 10, 11, 14, 15, 16
-L_LEN = 17
+# kept while a search bumps it (bundle._closest_rays), and inf (the exit a root's or a BVH node's
+# interval starts from: slab_lanes)
+L_O, L_D, L_INV, L_TMIN, L_HIT, L_PO, L_T0, L_DT, L_BEST, L_FAR = 0, 3, 6, 9, 10, 11, 14, 15, 16, 17
+L_LEN = 18
 
 
 def padded(count: int) -> int:
@@ -83,21 +84,25 @@ class _Lanes:
         return self.context.cast(self.builder, value, ty, types.intp)
 
 
-def slab_lanes(typingctx, lanes, origin, group, lo0, lo1, lo2, hi0, hi1, hi2, tin, tout, row):
+def slab_lanes(typingctx, lanes, origin, group, lo0, lo1, lo2, hi0, hi1, hi2, tin, tout, row, start, start_row,
+               stop, stop_row):
     """The rays of lanes' group, from the origins in rows origin..origin + 2 (L_O, or L_PO in the
-    searched patch's frame), against the box (lo xyz, hi xyz) as ray.slab_at tests it: each ray's
-    entry t into tin[row, its column], its exit t into tout[row, ...] (tout None: not kept); bit k
-    (uint64) set where ray WIDTH * group + k meets the box before its closest hit (lanes[L_HIT])."""
+    searched patch's frame), against the box (lo xyz, hi xyz) as ray.slab_at tests it within the
+    intervals [start[start_row], stop[stop_row]] (lanes[L_TMIN] and lanes[L_FAR], or a parent box's
+    rows of tin and tout): each ray's entry t into tin[row, its column], its exit t into
+    tout[row, ...] (tout None: not kept); bit k (uint64) set where ray WIDTH * group + k meets the
+    box before its closest hit (lanes[L_HIT]), bit WIDTH + k where it meets the box at all."""
     keep_out = tout != types.none
-    if not (_is_2d(lanes, types.float64) and _is_2d(tin, types.float64)
-            and (not keep_out or _is_2d(tout, types.float64))):
+    if not (_is_2d(lanes, types.float64) and _is_2d(tin, types.float64) and _is_2d(start, types.float64)
+            and _is_2d(stop, types.float64) and (not keep_out or _is_2d(tout, types.float64))):
         return None
-    sig = types.uint64(lanes, origin, group, *([types.float64] * 6), tin, tout, row)
+    sig = types.uint64(lanes, origin, group, *([types.float64] * 6), tin, tout, row, start, start_row, stop,
+                       stop_row)
 
     def codegen(context, builder, signature, args):
         lanes_ty, origin_ty, group_ty = signature.args[:3]
-        tin_ty, tout_ty, row_ty = signature.args[9:]
-        lanes_v, origin_v, group_v, *corners, tin_v, tout_v, row_v = args
+        tin_ty, tout_ty, row_ty, start_ty, start_row_ty, stop_ty, stop_row_ty = signature.args[9:]
+        lanes_v, origin_v, group_v, *corners, tin_v, tout_v, row_v, start_v, start_row_v, stop_v, stop_row_v = args
         v = _Lanes(context, builder)
         g = v.index(group_v, group_ty)
         first = v.index(origin_v, origin_ty)
@@ -105,8 +110,8 @@ def slab_lanes(typingctx, lanes, origin, group, lo0, lo1, lo2, hi0, hi1, hi2, ti
 
         def row(k):
             return v.load(lanes_ty, lanes_v, k, g)
-        t_in = row(L_TMIN)
-        t_out = v.constant(math.inf)
+        t_in = v.load(start_ty, start_v, v.index(start_row_v, start_row_ty), g)
+        t_out = v.load(stop_ty, stop_v, v.index(stop_row_v, stop_row_ty), g)
         zero = v.constant(0.0)
         fail = ir.Constant(ir.VectorType(ir.IntType(1), WIDTH), [0] * WIDTH)
         vec = ir.VectorType(ir.DoubleType(), WIDTH)
@@ -131,8 +136,8 @@ def slab_lanes(typingctx, lanes, origin, group, lo0, lo1, lo2, hi0, hi1, hi2, ti
         if keep_out:
             v.store(t_out, tout_ty, tout_v, v.index(row_v, row_ty), g)
         meets = builder.and_(builder.not_(fail), builder.fcmp_ordered('<=', t_in, t_out))
-        meets = builder.and_(meets, builder.fcmp_ordered('<', t_in, row(L_HIT)))
-        return v.bits(meets)
+        ahead = builder.and_(meets, builder.fcmp_ordered('<', t_in, row(L_HIT)))
+        return builder.or_(v.bits(ahead), builder.shl(v.bits(meets), ir.Constant(ir.IntType(64), WIDTH)))
 
     return sig, codegen
 
@@ -247,10 +252,11 @@ def _from_bits(bits) -> np.ndarray:
     return np.array([(int(bits) >> k) & 1 for k in range(WIDTH)], bool)
 
 
-def slab_lanes_python(lanes, origin, group, lo0, lo1, lo2, hi0, hi1, hi2, tin, tout, row):
+def slab_lanes_python(lanes, origin, group, lo0, lo1, lo2, hi0, hi1, hi2, tin, tout, row, start, start_row, stop,
+                      stop_row):
     cols = _columns(group)
-    t_in = lanes[L_TMIN, cols].copy()
-    t_out = np.full(WIDTH, math.inf)
+    t_in = start[start_row, cols].copy()
+    t_out = stop[stop_row, cols].copy()
     fail = np.zeros(WIDTH, bool)
     with np.errstate(all="ignore"):
         for c, (lo_c, hi_c) in enumerate(((lo0, hi0), (lo1, hi1), (lo2, hi2))):
@@ -268,7 +274,8 @@ def slab_lanes_python(lanes, origin, group, lo0, lo1, lo2, hi0, hi1, hi2, tin, t
     tin[row, cols] = t_in
     if tout is not None:
         tout[row, cols] = t_out
-    return _to_bits(~fail & (t_in <= t_out) & (t_in < lanes[L_HIT, cols]))
+    meets = ~fail & (t_in <= t_out)
+    return np.uint64(_to_bits(meets & (t_in < lanes[L_HIT, cols])) | (_to_bits(meets) << np.uint64(WIDTH)))
 
 
 def ahead_lanes_python(tin, row, lanes, group, bits):

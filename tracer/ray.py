@@ -10,12 +10,14 @@ from .jit import njit
 # Ray record: origin, direction, 1/direction, t_min, threshold of detail T(t) = T0 + dT*t,
 # the unit normals of two orthogonal planes that meet in the ray (for hull tests), and the boxes
 # its searches may still compute (inf: no budget; the float64 reference's bound), and the normal
-# of a plane through the origin that the ray never goes behind (set_side; zero: none).
-R_O, R_D, R_INV, R_TMIN, R_T0, R_DT, R_N1, R_N2, R_BUDGET, R_SIDE = 0, 3, 6, 9, 10, 11, 12, 15, 18, 19
-RAY_LEN = 22
-# Hit record: entry/exit t of the hit box, world box, (u, v), patch, depth, interval sizes.
-H_TIN, H_TOUT, H_LO, H_HI, H_U, H_V, H_PATCH, H_DEPTH, H_DU, H_DV = 0, 1, 2, 5, 8, 9, 10, 11, 12, 13
-HIT_LEN = 14
+# of a plane through the origin that the ray never goes behind (set_side; zero: none), and the t
+# every box a search keeps must reach (a kd-tree or grid cell's entry: cell_walk; -inf: none).
+R_O, R_D, R_INV, R_TMIN, R_T0, R_DT, R_N1, R_N2, R_BUDGET, R_SIDE, R_REACH = 0, 3, 6, 9, 10, 11, 12, 15, 18, 19, 22
+RAY_LEN = 23
+# Hit record: entry/exit t of the hit box, world box, (u, v), patch, depth, interval sizes, the
+# interval's lower corner (u0, v0: the tie key within a leaf, before_best).
+H_TIN, H_TOUT, H_LO, H_HI, H_U, H_V, H_PATCH, H_DEPTH, H_DU, H_DV, H_U0, H_V0 = 0, 1, 2, 5, 8, 9, 10, 11, 12, 13, 14, 15
+HIT_LEN = 16
 
 T_SLACK = 4.0 * 2.0 ** -52  # widen slab exits by a few float64 ulps: grazing rays keep their boxes
 # slab's offset for a box in the ray's own coordinates: x + -0.0 is x for every x, so the
@@ -37,12 +39,53 @@ def search_limit(hit, p):
     """The tie rule: of hit boxes entered at the same t, the one of the lower leaf wins, whatever
     order the leaves are searched in. So a search of leaf p runs up to the next float past the
     best t where the best hit lies in a leaf above p (a box entered at the best t is a candidate),
-    else up to the best t; the walks let a box entered at the best t through. (Within a leaf the
-    first box found wins, in the search's own order.)"""
+    else up to the best t; the walks let a box entered at the best t through. Within a leaf, the
+    box of the lower parameter corner wins (before_best).
+
+    Entry ts never decrease down a search tree (a half's interval starts at its parent's entry:
+    subpatch.open_box), so a box's key bounds those of every box below it, and a prune by the
+    best hit's key removes only boxes that cannot win, whichever hit was found first."""
     best = hit[H_TIN]
     if hit[H_PATCH] > p and best < math.inf:
         return np.nextafter(best, math.inf)
     return best
+
+
+@njit(cache=True, nogil=True, inline='always')
+def before_best(t, u0, v0, hit, p):
+    """Can a box of leaf p entered at t, its parameter interval's lower corner (u0, v0), hold a
+    hit box whose key (entry t, leaf, corner u0, then v0) is below the best hit's? hit[H_TIN] is
+    the search's limit (search_limit); at an equal t within the best hit's own leaf, the lower
+    corner decides (the boxes below a box have corners at or above its own)."""
+    limit = hit[H_TIN]
+    if t != limit:
+        return t < limit
+    return hit[H_PATCH] == p and corner_before(u0, v0, hit[H_U0], hit[H_V0])
+
+
+FIXED_ONE = 2.0 ** 60  # corners in [0, 1] as 60-bit fixed point (Z order)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def corner_before(u0, v0, u1, v1):
+    """Does the parameter corner (u0, v0) come before (u1, v1) in the Z order of their bits (u's
+    bit before v's of the same weight), then, where the first 60 bits agree, by u and then v? A
+    box's corner comes at or before every corner below it (the order is monotone in u and in v);
+    and the search visits a half before the other where both are entered at the same t, the lower
+    one first, which the Z order follows where a sub-patch is halved in u and v in turn: so a tie
+    within a leaf is mostly settled by the first box found, not by a search of every box tied with
+    it."""
+    au = np.int64(u0 * FIXED_ONE)
+    av = np.int64(v0 * FIXED_ONE)
+    bu = np.int64(u1 * FIXED_ONE)
+    bv = np.int64(v1 * FIXED_ONE)
+    xu = au ^ bu
+    xv = av ^ bv
+    if xu == 0 and xv == 0:
+        return u0 < u1 or (u0 == u1 and v0 < v1)
+    if xu < xv and xu < (xu ^ xv):  # v's highest differing bit is above u's
+        return av < bv
+    return au < bu
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -70,6 +113,7 @@ def make_ray(ray, ox, oy, oz, dx, dy, dz, t_min, t0, dt):
     ray[R_T0] = t0
     ray[R_DT] = dt
     ray[R_BUDGET] = math.inf
+    ray[R_REACH] = -math.inf
     for c in range(3):
         ray[R_SIDE + c] = 0.0
     # n1 = d x (axis of d's smallest component), n2 = d x n1, both normalised.
@@ -99,15 +143,16 @@ def slab(bx, fx, fy, fz, ray):
     direction component is tested by containment instead of by division, so
     no inf * 0 = NaN can appear.
     """
-    return slab_at(bx[0] + fx, bx[1] + fy, bx[2] + fz, bx[3] + fx, bx[4] + fy, bx[5] + fz, ray)
+    return slab_at(bx[0] + fx, bx[1] + fy, bx[2] + fz, bx[3] + fx, bx[4] + fy, bx[5] + fz, ray, ray[R_TMIN], math.inf)
 
 
 @njit(cache=True, nogil=True, inline='always')
-def slab_at(lo0, lo1, lo2, hi0, hi1, hi2, ray):
-    """slab for the box already shifted (lo xyz, hi xyz): where several rays meet one box, the
-    shifted corners are computed once (the same sums)."""
-    t_in = ray[R_TMIN]
-    t_out = math.inf
+def slab_at(lo0, lo1, lo2, hi0, hi1, hi2, ray, t_start, t_stop):
+    """slab for the box already shifted (lo xyz, hi xyz), its interval clipped to [t_start, t_stop]
+    (t_start >= the ray's t_min): where several rays meet one box, the shifted corners are computed
+    once (the same sums)."""
+    t_in = t_start
+    t_out = t_stop
     for c in range(3):
         lo = (lo0 if c == 0 else (lo1 if c == 1 else lo2)) - ray[R_O + c]
         hi = (hi0 if c == 0 else (hi1 if c == 1 else hi2)) - ray[R_O + c]

@@ -15,7 +15,8 @@ import math
 
 from .jit import njit
 
-from .ray import H_DEPTH, H_DU, H_DV, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_V, R_DT, R_O, R_T0, R_TMIN
+from .ray import (H_DEPTH, H_DU, H_DV, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_U0, H_V, H_V0, R_DT, R_O, R_T0,
+                  R_TMIN, before_best)
 from .subpatch import (I_DEPTH, I_LAST, I_STALLED, I_STEP, I_TRIM, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN,
                        M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, REFINE, RECENTRE, grid_l1, hull_behind, hull_hit,
                        hull_off_plane, open_box, raw_box, recentre, refine, seam_plane, snap_down, snap_up, split,
@@ -63,15 +64,17 @@ def set_event(trace, sl, s, event):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def open_child(sl, s, pa, lv, ray, t_max, trace, tracing):
-    """Test slot s's (widened) box against the ray; returns 1 if it stays a candidate."""
-    alive, ok = open_box(sl, s, ray, t_max)
-    if alive and sl.mf[s, M_TIN] <= ray[R_TMIN] and hull_behind(sl, s, pa, ray):  # a box holding the origin
+def open_child(sl, s, pa, lv, ray, t_start, t_stop, hit, trace, tracing):
+    """Test slot s's (widened) box against the ray within [t_start, t_stop] (its parent's
+    interval; the ray's t_min and inf at the root: subpatch.open_box). Returns (alive, met), 1 or
+    0: it stays a candidate against the best hit; the ray meets it (whatever the best hit)."""
+    alive, ok = open_box(sl, s, ray, t_start, t_stop, hit, pa.p)
+    if ok and sl.mf[s, M_TIN] <= ray[R_TMIN] and hull_behind(sl, s, pa, ray):  # a box holding the origin
         alive = ok = False  # the ray misses it
     if tracing:
         event = SPLIT if alive else (PRUNED if ok else MISS)  # SPLIT stands until it is popped
         sl.mi[s, I_STEP] = record(trace, sl, s, pa, lv, event)
-    return 1 if alive else 0
+    return 1 if alive else 0, 1 if ok else 0
 
 
 # ---- the steps ----------------------------------------------------------------------------
@@ -85,6 +88,14 @@ def enter_frame(sl, ray, lv, p):
     for c in range(3):
         lray[R_O + c] = ray[R_O + c] - lv.frame[p, c]
     return lray
+
+
+@njit(cache=True, nogil=True, inline='always')
+def ahead(sl, a, pa, hit):
+    """Can slot a, popped from the stack, still hold a hit box that beats the best hit
+    (ray.before_best)?"""
+    mf = sl.mf
+    return before_best(mf[a, M_TIN], mf[a, M_U0], mf[a, M_V0], hit, pa.p)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -156,7 +167,7 @@ def trim_state(sl, a, pa, trims):
 
 @njit(cache=True, nogil=True, inline='always')
 def judge(sl, a, pa, lv, ray, q):
-    """Does slot a meet the termination criterion? Returns (stop, the criterion's diameter,
+    """Does slot a meet the termination criterion? Returns (stop, the box's criterion diameter,
     whether the box really shrank since its parent)."""
     stop, d_crit, shrank, _ = judge_known(sl, a, pa, lv, ray, q, -1.0)
     return stop, d_crit, shrank
@@ -172,34 +183,40 @@ def judge_known(sl, a, pa, lv, ray, q, g):
     criterion = q.criterion
     param = q.param
     # The criteria's measure: the grid box's L1 diameter (>= d) once d is near a threshold.
-    limit = GRID_PREFILTER * mf[a, M_GULP]
+    box_limit = GRID_PREFILTER * mf[a, M_GULP]
     if criterion == FIXED:
-        limit = max(limit, param)
-    elif criterion == ADAPTIVE:
-        limit = max(limit, ray[R_T0] + ray[R_DT] * mf[a, M_TIN])
+        box_limit = max(box_limit, param)
+    limit = box_limit
+    detail = 0.0
+    if criterion == ADAPTIVE:
+        detail = ray[R_T0] + ray[R_DT] * mf[a, M_TIN]
+        limit = max(limit, detail)
     d_crit = d
     if d <= limit:
         if g < 0.0:
             g = grid_l1(sl, a, lv.grid, pa.p)
         d_crit = g
+    # The box's own measure, the same for every ray (the threshold of detail is the ray's): what
+    # the shrink test and the halves' M_DPAR read, so a bundle's rays split a shared box alike.
+    d_box = g if d <= box_limit else d
     stop = depth >= q.max_depth
     if criterion == FIXED:
         stop = stop or d_crit <= param
     elif criterion == ADAPTIVE:
-        stop = stop or d_crit <= ray[R_T0] + ray[R_DT] * mf[a, M_TIN]
+        stop = stop or d_crit <= detail
     elif criterion == MANTISSA:
         stop = stop or within_ulps(sl, a, param, q.bits, lv, pa.p)  # the working precision's ulps
     # Float precision: the box did not shrink, even after halving the other direction too.
     # "Shrink" means by more than rounding noise: in float64 (its own grid) the widened box
     # otherwise keeps losing last bits forever. An interval that can no longer halve is spent.
     # A box that is mostly error bound cannot get meaningfully smaller either.
-    shrank = d_crit < mf[a, M_DPAR] * pa.shrink_factor and d > 1.0625 * mf[a, M_W]
+    shrank = d_box < mf[a, M_DPAR] * pa.shrink_factor and d > 1.0625 * mf[a, M_W]
     if (mf[a, M_U0] == mf[a, M_U1]) or (mf[a, M_V0] == mf[a, M_V1]):
         stop = True  # the parameter interval cannot be halved any more
     if not shrank and sl.mi[a, I_STALLED] == 1 and not (pa.rational and d > limit):
         stop = True  # (a rational box can stall far above the float limit while extreme
         # weights spread its control points: that is no loss of precision, split on)
-    return stop, d_crit, shrank, g
+    return stop, d_box, shrank, g
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -248,6 +265,8 @@ def report(hit, sl, a, pa, lv):
     hit[H_DV] = mf[a, M_V1] - mf[a, M_V0]
     hit[H_PATCH] = p
     hit[H_DEPTH] = sl.mi[a, I_DEPTH]
+    hit[H_U0] = mf[a, M_U0]
+    hit[H_V0] = mf[a, M_V0]
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -299,22 +318,27 @@ def halve(sl, a, b, pa, ray, q, d_crit, shrank, has_general):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def sort_halves(sl, a, b, pa, lv, ray, t_max, direction, trace, tracing):
-    """Test the halves a and b (b the one past the seam) against the ray: (far, near, alive_far,
-    alive_near), the far half to be pushed below the near one; only live halves count."""
-    alive_a = open_child(sl, a, pa, lv, ray, t_max, trace, tracing)
-    alive_b = open_child(sl, b, pa, lv, ray, t_max, trace, tracing)
-    far, near, alive_far, alive_near, dropped = near_and_far(sl, a, b, pa, ray, direction, alive_a, alive_b)
+def sort_halves(sl, a, b, pa, lv, ray, t_start, t_stop, hit, direction, trace, tracing):
+    """Test the halves a and b (b the one past the seam) against the ray within [t_start, t_stop],
+    their parent's interval: (far, near, alive_far, alive_near), the far half to be pushed below
+    the near one; only live halves count."""
+    alive_a, met_a = open_child(sl, a, pa, lv, ray, t_start, t_stop, hit, trace, tracing)
+    alive_b, met_b = open_child(sl, b, pa, lv, ray, t_start, t_stop, hit, trace, tracing)
+    far, near, alive_far, alive_near, dropped = near_and_far(sl, a, b, pa, ray, direction, alive_a, alive_b,
+                                                             met_a & met_b)
     if tracing and dropped >= 0:
         set_event(trace, sl, dropped, MISS)
     return far, near, alive_far, alive_near
 
 
 @njit(cache=True, nogil=True, inline='always')
-def near_and_far(sl, a, b, pa, ray, direction, alive_a, alive_b):
-    """The halves a and b (b past the seam), whose boxes the ray met (alive_a, alive_b: 1 or 0),
-    as (far, near, alive_far, alive_near, the half the hull tests dropped or -1); a is the near
-    one where both are entered at the same t."""
+def near_and_far(sl, a, b, pa, ray, direction, alive_a, alive_b, met_both):
+    """The halves a and b (b past the seam), whether each stays a candidate (alive_a, alive_b: 1
+    or 0) and whether the ray meets both boxes, as (far, near, alive_far, alive_near, the live half
+    the hull tests dropped or -1); a is the near one where both are entered at the same t.
+
+    The hull tests run where the ray meets both boxes, whatever the best hit prunes: which half
+    they drop is a matter of the ray and the boxes, the same in every order of visits."""
     mf = sl.mf
     # Selects, not branches: which half survives is as good as random.
     near_a = mf[a, M_TIN] <= mf[b, M_TIN]
@@ -323,29 +347,34 @@ def near_and_far(sl, a, b, pa, ray, direction, alive_a, alive_b):
     alive_far = alive_b if near_a else alive_a
     alive_near = alive_a if near_a else alive_b
     dropped = -1
-    if alive_far and alive_near:
+    if met_both and (alive_far or alive_near):
         # The ray meets both boxes: the control hulls (across two planes through the ray)
         # are much thinner than the boxes, and one of them usually misses (a side branch saved).
         # The plane along the new seam separates first (the half the ray does not cross is on
         # its far side); the planes of the ray's own frame catch the rest.
         w0, w1, w2 = seam_plane(sl, b, pa, direction, ray)
         if hull_off_plane(sl, far, pa, ray, w0, w1, w2) or not hull_hit(sl, far, pa, ray):
+            if alive_far:
+                dropped = far
             alive_far = 0
-            dropped = far
         elif hull_off_plane(sl, near, pa, ray, w0, w1, w2) or not hull_hit(sl, near, pa, ray):
+            if alive_near:
+                dropped = near
             alive_near = 0
-            dropped = near
     return far, near, alive_far, alive_near, dropped
 
 
 @njit(cache=True, nogil=True, inline='always')
-def subdivide(sl, a, sp, pa, lv, ray, q, t_max, d_crit, shrank, trace, tracing, has_general):
+def subdivide(sl, a, sp, pa, lv, ray, q, hit, d_crit, shrank, trace, tracing, has_general):
     """Halve slot a (stack position sp; tightened first) and push the halves that stay
-    candidates, the near one on top. Returns the new stack height."""
+    candidates against the best hit, the near one on top. Returns the new stack height."""
     order = sl.order
     b = order[sp + 1]
+    t_start = sl.mf[a, M_TIN]
+    t_stop = sl.mf[a, M_TOUT]
     direction = halve(sl, a, b, pa, ray, q, d_crit, shrank, has_general)
-    far, near, alive_far, alive_near = sort_halves(sl, a, b, pa, lv, ray, t_max, direction, trace, tracing)
+    far, near, alive_far, alive_near = sort_halves(sl, a, b, pa, lv, ray, t_start, t_stop, hit, direction, trace,
+                                                   tracing)
     # Positions sp, sp + 1 keep slots {a, b}.
     order[sp] = far if alive_far else near
     order[sp + 1] = near if alive_far else far

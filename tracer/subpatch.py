@@ -22,7 +22,7 @@ from .jit import njit
 from .binary import pow2, ulp
 from .bezier import (control_box, control_box_rational, restrict, restrict_err, split_u, split_u_cubic,
                      split_u_linear, split_v, split_v_cubic, split_v_linear)
-from .ray import R_D, R_N1, R_N2, R_O, R_SIDE, slab
+from .ray import R_D, R_N1, R_N2, R_O, R_REACH, R_SIDE, before_best, slab_at
 from .records import PatchInfo
 from .simd import dist_range_cubic
 
@@ -430,11 +430,22 @@ def split(sl, a, b, pa, direction, has_general):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def open_box(sl, s, ray, t_max):
-    """Slab-test slot s's widened box (its interval into M_TIN, M_TOUT); is it still a candidate
-    before t_max?"""
+def open_box(sl, s, ray, t_start, t_stop, hit, p):
+    """Slab-test slot s's widened box within [t_start, t_stop], its parent's interval (the ray's
+    t_min and inf at a root) (its interval into M_TIN, M_TOUT); is it still a candidate against the
+    best hit, and does it reach ray[R_REACH]? (alive, met).
+
+    A box's interval lies within its parent's: a true crossing in a half lies in its parent's box
+    too. So entry ts never decrease down the tree, and a box's key bounds every key below it
+    (ray.search_limit); exits never increase, and a box that ends before a cell's entry holds
+    nothing below it that reaches the cell."""
     mf = sl.mf
-    ok, t_in, t_out = slab(sl.box[s], mf[s, M_OX], mf[s, M_OX + 1], mf[s, M_OX + 2], ray)
+    box = sl.box
+    ox = mf[s, M_OX]
+    oy = mf[s, M_OX + 1]
+    oz = mf[s, M_OX + 2]
+    ok, t_in, t_out = slab_at(box[s, 0] + ox, box[s, 1] + oy, box[s, 2] + oz, box[s, 3] + ox, box[s, 4] + oy,
+                              box[s, 5] + oz, ray, t_start, t_stop)
     mf[s, M_TIN] = t_in
     mf[s, M_TOUT] = t_out
-    return ok & (t_in < t_max), ok
+    return ok & (t_out >= ray[R_REACH]) & before_best(t_in, mf[s, M_U0], mf[s, M_V0], hit, p), ok
