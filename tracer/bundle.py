@@ -33,13 +33,14 @@ from .frustum import F_LEN
 from .jit import njit, specialise
 from .lanes import L_BEST, L_FAR, L_HIT, L_LEN, L_PO, L_TMIN, WIDTH, ahead_lanes, at_start_lanes
 from .lanes import count_lanes, nearest_lanes, padded, slab_lanes, within_detail_lanes
-from .ray import H_PATCH, H_TIN, RAY_LEN, R_O, R_TMIN, before_best, search_limit
+from .ray import H_PATCH, H_TIN, RAY_LEN, R_O, before_best, search_limit
 from .records import C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT
-from .search_steps import ADAPTIVE, GRID_PREFILTER, halve, hull_accepts, judge_known, near_and_far, report, root_at
+from .search_steps import (ADAPTIVE, GRID_PREFILTER, ahead, halve, hull_accepts, judge_known, near_and_far, open_slot,
+                           report, root_at)
 from .search_steps import tighten, trim_accepts, trim_state
 from .subpatch import (I_DEPTH, I_LAST, I_STALLED, M_D, M_DPAR, M_GULP, M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1,
                        M_W, hull_behind, hull_hit, hull_off_plane, patch_info)
-from .subpatch import grid_l1, open_box, seam_plane
+from .subpatch import grid_l1, seam_plane
 from .surface_cache import S_DEPTH, S_FIRST, S_HITS, S_MISSES, copy_slot, keep_halves, take_pair, touch
 
 ONE = np.uint64(1)
@@ -196,17 +197,6 @@ def ahead_in(tin, br, row, m, count_nodes):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _alone(sl, s, pa, lr, hit, t_start, t_stop):
-    """Slot s's box against one ray within its parent's interval (its interval into the slot,
-    as the single ray's search tests it): (alive, met), 1 or 0, as search_steps.open_child (open_pair
-    for a mask of one ray)"""
-    alive, ok = open_box(sl, s, lr, t_start, t_stop, hit, pa.p)
-    if ok and sl.mf[s, M_TIN] <= lr[R_TMIN] and hull_behind(sl, s, pa, lr):
-        alive = ok = False
-    return 1 if alive else 0, 1 if ok else 0
-
-
-@njit(cache=True, nogil=True, inline='always')
 def lane_limit(hit, p):
     """A ray's limit in the lanes (L_HIT), which prune by t alone, in a search of leaf p: its
     search limit, or the next float past it where its best hit lies in p itself (there a box
@@ -328,8 +318,7 @@ def _solo_search(sl, start, pa, lv, trims, q, br, r, base, free, nfree):
     while top > base:
         top -= 1
         a = stack[top]
-        if not before_best(mf[a, M_TIN], mf[a, M_U0], mf[a, M_V0], hit, pa.p) or (
-                HAS_TRIMS and not checked and trim_state(sl, a, pa, trims) < 0):  # noqa: F821
+        if not ahead(sl, a, pa, hit) or (HAS_TRIMS and not checked and trim_state(sl, a, pa, trims) < 0):  # noqa: F821
             free[nfree] = a
             nfree += 1
             checked = False
@@ -349,8 +338,8 @@ def _solo_search(sl, start, pa, lv, trims, q, br, r, base, free, nfree):
         nfree -= 1
         b = free[nfree]
         direction = halve(sl, a, b, pa, lr, q, d_crit, shrank, HAS_GENERAL)  # noqa: F821
-        alive_a, met_a = _alone(sl, a, pa, lr, hit, t_start, t_stop)
-        alive_b, met_b = _alone(sl, b, pa, lr, hit, t_start, t_stop)
+        alive_a, met_a = open_slot(sl, a, pa, lr, t_start, t_stop, hit)
+        alive_b, met_b = open_slot(sl, b, pa, lr, t_start, t_stop, hit)
         far, near, alive_far, alive_near, _ = near_and_far(sl, a, b, pa, lr, direction, alive_a, alive_b,
                                                            met_a & met_b)
         for half, alive in ((far, alive_far), (near, alive_near)):  # the near half on top

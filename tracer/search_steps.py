@@ -64,17 +64,24 @@ def set_event(trace, sl, s, event):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def open_child(sl, s, pa, lv, ray, t_start, t_stop, hit, trace, tracing):
+def open_slot(sl, s, pa, ray, t_start, t_stop, hit):
     """Test slot s's (widened) box against the ray within [t_start, t_stop] (its parent's
     interval; the ray's t_min and inf at the root: subpatch.open_box). Returns (alive, met), 1 or
     0: it stays a candidate against the best hit; the ray meets it (whatever the best hit)."""
     alive, ok = open_box(sl, s, ray, t_start, t_stop, hit, pa.p)
     if ok and sl.mf[s, M_TIN] <= ray[R_TMIN] and hull_behind(sl, s, pa, ray):  # a box holding the origin
         alive = ok = False  # the ray misses it
+    return 1 if alive else 0, 1 if ok else 0
+
+
+@njit(cache=True, nogil=True, inline='always')
+def open_child(sl, s, pa, lv, ray, t_start, t_stop, hit, trace, tracing):
+    """open_slot, recording the box in the trace when tracing."""
+    alive, ok = open_slot(sl, s, pa, ray, t_start, t_stop, hit)
     if tracing:
         event = SPLIT if alive else (PRUNED if ok else MISS)  # SPLIT stands until it is popped
         sl.mi[s, I_STEP] = record(trace, sl, s, pa, lv, event)
-    return 1 if alive else 0, 1 if ok else 0
+    return alive, ok
 
 
 # ---- the steps ----------------------------------------------------------------------------
