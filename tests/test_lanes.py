@@ -28,6 +28,9 @@ def _compiled():
             lanes, origin, g, c[0], c[1], c[2], c[3], c[4], c[5], tin, tout, row, start, 0, start, 1)),
         slab_no_out=njit(lambda lanes, origin, g, c, tin, row, start: L.slab_lanes(
             lanes, origin, g, c[0], c[1], c[2], c[3], c[4], c[5], tin, None, row, start, 0, start, 1)),
+        pair=njit(lambda lanes, origin, g, a, b, tin, tout, row_a, row_b, start, stop: L.slab_pair_lanes(
+            lanes, origin, g, a[0], a[1], a[2], a[3], a[4], a[5], b[0], b[1], b[2], b[3], b[4], b[5], tin, tout, row_a,
+            row_b, start, row_a, stop, row_a)),
         ahead=njit(lambda tin, row, lanes, g, bits: L.ahead_lanes(tin, row, lanes, g, bits)),
         at_start=njit(lambda tin, row, lanes, g, bits: L.at_start_lanes(tin, row, lanes, g, bits)),
         nearest=njit(lambda tin, row, g, bits: L.nearest_lanes(tin, row, g, bits)),
@@ -42,6 +45,8 @@ def _python():
                                                                                    row, start, 0, start, 1),
         slab_no_out=lambda lanes, origin, g, c, tin, row, start: L.slab_lanes_python(lanes, origin, g, *c, tin, None,
                                                                                      row, start, 0, start, 1),
+        pair=lambda lanes, origin, g, a, b, tin, tout, row_a, row_b, start, stop: L.slab_pair_lanes_python(
+            lanes, origin, g, *a, *b, tin, tout, row_a, row_b, start, row_a, stop, row_a),
         ahead=L.ahead_lanes_python, at_start=L.at_start_lanes_python, nearest=L.nearest_lanes_python,
         within_detail=L.within_detail_lanes_python, count=L.count_lanes_python)
 
@@ -98,6 +103,22 @@ def _box(rng, rays):
     return tuple(float(x) for x in np.concatenate([lo, hi]))
 
 
+def _case(rng, count):
+    """Rays, their closest hits' t (some inf) and their lanes."""
+    rays = _rays(rng, count)
+    hits = np.where(rng.random(count) < 0.3, rng.uniform(0.0, 5.0, count), math.inf)
+    return rays, hits, _lanes_of(rays, hits)
+
+
+def _parent(rng, lanes, count):
+    """A parent box's interval, rows (entries, exits): its entry at or past t_min, its exit."""
+    interval = np.full((2, lanes.shape[1]), math.inf)
+    interval[0] = lanes[L.L_TMIN]
+    interval[0, :count] += np.where(rng.random(count) < 0.5, rng.uniform(0.0, 3.0, count), 0.0)
+    interval[1, :count] = np.where(rng.random(count) < 0.5, rng.uniform(0.0, 6.0, count), math.inf)
+    return interval
+
+
 def _bits(flags):
     return sum(1 << k for k, f in enumerate(flags) if f)
 
@@ -111,15 +132,12 @@ def test_slab_lanes_are_the_scalar_slab_ray_by_ray():
     count = L.WIDTH * GROUPS
     with np.errstate(all="ignore"):
         for case in range(60 if numba_config.DISABLE_JIT else 400):
-            rays = _rays(rng, count)
-            hits = np.where(rng.random(count) < 0.3, rng.uniform(0.0, 5.0, count), math.inf)
-            lanes = _lanes_of(rays, hits)
+            rays, hits, lanes = _case(rng, count)
             corners = _box(rng, rays)
             start = np.full((2, lanes.shape[1]), math.inf)  # rows: the interval's start, its stop
             start[0] = lanes[L.L_TMIN]
-            if case % 2:  # a parent's interval: its entry at or past t_min, its exit
-                start[0, :count] += np.where(rng.random(count) < 0.5, rng.uniform(0.0, 3.0, count), 0.0)
-                start[1, :count] = np.where(rng.random(count) < 0.5, rng.uniform(0.0, 6.0, count), math.inf)
+            if case % 2:
+                start = _parent(rng, lanes, count)
             for origin in (L.L_O, L.L_PO):
                 moved = rays.copy()
                 moved[:, 0:3] = lanes[origin:origin + 3, :count].T
@@ -202,3 +220,33 @@ def test_bundles_report_the_single_rays_bits_interpreted_too():
     assert alone.hit.sum() > 10
     for name in ("hit", "t", "position", "box_min", "box_max", "normal", "uv", "patch"):
         assert np.array_equal(getattr(alone, name), getattr(bundled, name), equal_nan=True), name
+
+
+@pytest.mark.interpreted
+def test_slab_pair_lanes_are_two_slab_lanes():
+    """The pair test is slab_lanes for each box, bit for bit, also where the boxes' interval is the
+    first box's own rows (a sub-patch's halves within their parent's interval, as bundle.open_pair
+    tests them): every load comes before the stores."""
+    rng = np.random.default_rng(72)
+    count = L.WIDTH * GROUPS
+    with np.errstate(all="ignore"):
+        for case in range(40 if numba_config.DISABLE_JIT else 300):
+            rays, hits, lanes = _case(rng, count)
+            a, b = _box(rng, rays), _box(rng, rays)
+            parent = _parent(rng, lanes, count)
+            for kind in _kinds():
+                for g in range(GROUPS):
+                    want_in = np.full((3, lanes.shape[1]), np.nan)
+                    want_out = want_in.copy()
+                    bits_a = int(kind["slab"](lanes, L.L_PO, g, a, want_in, want_out, 1, parent))
+                    bits_b = int(kind["slab"](lanes, L.L_PO, g, b, want_in, want_out, 2, parent))
+                    # in place: the interval in rows 1 of tin (entries) and tout (exits), a's row
+                    tin = np.full((3, lanes.shape[1]), np.nan)
+                    tout = tin.copy()
+                    tin[1], tout[1] = parent[0], parent[1]
+                    both = kind["pair"](lanes, L.L_PO, g, a, b, tin, tout, 1, 2, tin, tout)
+                    assert int(both) == bits_a | bits_b << (2 * L.WIDTH), case
+                    cols = slice(L.WIDTH * g, L.WIDTH * g + L.WIDTH)
+                    for row in (1, 2):
+                        assert want_in[row, cols].tobytes() == tin[row, cols].tobytes(), (case, row)
+                        assert want_out[row, cols].tobytes() == tout[row, cols].tobytes(), (case, row)

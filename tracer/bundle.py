@@ -32,7 +32,7 @@ from .drivers import WIDE_BITS, wide_leaves, wide_slots
 from .frustum import F_LEN
 from .jit import njit, specialise
 from .lanes import L_BEST, L_FAR, L_HIT, L_LEN, L_PO, L_TMIN, WIDTH, ahead_lanes, at_start_lanes
-from .lanes import count_lanes, nearest_lanes, padded, slab_lanes, within_detail_lanes
+from .lanes import count_lanes, nearest_lanes, padded, slab_lanes, slab_pair_lanes, within_detail_lanes
 from .ray import H_PATCH, H_TIN, RAY_LEN, R_O, before_best, search_limit
 from .records import C_CACHE_HITS, C_CACHE_MISSES, C_EFFORT
 from .search_steps import (ADAPTIVE, GRID_PREFILTER, ahead, halve, hull_accepts, judge_known, near_and_far, open_slot,
@@ -110,18 +110,9 @@ def _corners(sl, s):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _slot_rays(sl, s, pa, br, row, g, bits, start, start_row, stop, stop_row):
-    """The rays of group g in bits (the group's low bits) against slot s's box, eight at a time,
-    each within [start[start_row], stop[stop_row]] (the parent's interval, or the rays' t_min and
-    inf at a root: subpatch.open_box): their intervals into tin[row], tout[row]. Returns (the
-    rays that meet it before their own closest hit's limit, those that meet it at all), less those
-    wholly behind the side plane of a ray whose origin it holds, as search_steps.open_child drops
-    it for the single ray."""
-    lo0, lo1, lo2, hi0, hi1, hi2 = _corners(sl, s)
-    both = slab_lanes(br.lanes, L_PO, g, lo0, lo1, lo2, hi0, hi1, hi2, br.tin, br.tout, row, start, start_row, stop,
-                      stop_row)
-    alive = both & bits
-    met = (both >> np.uint64(WIDTH)) & bits
+def _off_side(sl, s, pa, br, row, g, alive, met):
+    """(alive, met) of group g in slot s less the rays wholly behind the side plane of a ray whose
+    origin the box holds, as search_steps.open_child drops it for the single ray."""
     start = at_start_lanes(br.tin, row, br.lanes, g, met)
     shift = np.uint64(WIDTH * g)
     while start != ZERO:  # boxes that hold a ray's origin: the single ray's side-plane test
@@ -132,6 +123,19 @@ def _slot_rays(sl, s, pa, br, row, g, bits, start, start_row, stop, stop_row):
             met &= ~bit(k)
             alive &= ~bit(k)
     return alive, met
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _slot_rays(sl, s, pa, br, row, g, bits, start, start_row, stop, stop_row):
+    """The rays of group g in bits (the group's low bits) against slot s's box, eight at a time,
+    each within [start[start_row], stop[stop_row]] (the rays' t_min and inf at a root:
+    subpatch.open_box): their intervals into tin[row], tout[row]. Returns (the rays that meet it
+    before their own closest hit's limit, those that meet it at all), less those behind a side
+    plane (_off_side)."""
+    lo0, lo1, lo2, hi0, hi1, hi2 = _corners(sl, s)
+    both = slab_lanes(br.lanes, L_PO, g, lo0, lo1, lo2, hi0, hi1, hi2, br.tin, br.tout, row, start, start_row, stop,
+                      stop_row)
+    return _off_side(sl, s, pa, br, row, g, both & bits, (both >> np.uint64(WIDTH)) & bits)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -151,9 +155,10 @@ def open_root(sl, s, pa, br, row, m):
 @njit(cache=True, nogil=True, inline='always')
 def open_pair(sl, a, b, pa, br, row_a, row_b, m):
     """The halves a and b against the rays of m, group by group, within their parent's intervals,
-    which row_a holds until a's own overwrite them (b's first): (the rays of each half, the rays that
-    meet both boxes). (The bundle's bounds, frustum.py, rarely reject a half: counted on the teapot,
-    12 % of the halves tested by four rays or more, saving less than they cost.)"""
+    which row_a holds until their own overwrite it (lanes.slab_pair_lanes loads first): (the rays
+    of each half, the rays that meet both boxes). (The bundle's bounds, frustum.py, rarely reject a
+    half: counted on the teapot, 12 % of the halves tested by four rays or more, saving less than
+    they cost.)"""
     alive_a = ZERO
     alive_b = ZERO
     met_both = ZERO
@@ -161,8 +166,13 @@ def open_pair(sl, a, b, pa, br, row_a, row_b, m):
         bits = group_bits(m, g)
         if bits != ZERO:
             shift = np.uint64(WIDTH * g)
-            kept_b, met_b = _slot_rays(sl, b, pa, br, row_b, g, bits, br.tin, row_a, br.tout, row_a)
-            kept_a, met_a = _slot_rays(sl, a, pa, br, row_a, g, bits, br.tin, row_a, br.tout, row_a)
+            a0, a1, a2, a3, a4, a5 = _corners(sl, a)
+            b0, b1, b2, b3, b4, b5 = _corners(sl, b)
+            both = slab_pair_lanes(br.lanes, L_PO, g, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, br.tin, br.tout,
+                                   row_a, row_b, br.tin, row_a, br.tout, row_a)
+            kept_a, met_a = _off_side(sl, a, pa, br, row_a, g, both & bits, (both >> np.uint64(WIDTH)) & bits)
+            kept_b, met_b = _off_side(sl, b, pa, br, row_b, g, (both >> np.uint64(2 * WIDTH)) & bits,
+                                      (both >> np.uint64(3 * WIDTH)) & bits)
             alive_a |= kept_a << shift
             alive_b |= kept_b << shift
             met_both |= (met_a & met_b) << shift

@@ -13,7 +13,7 @@ from .bundle import (ONE, W_BOX_TESTS, W_NODES, W_PATCHES, W_SURFACES, ZERO, ahe
                      nearest_in)
 from .frustum import MIN_RAYS, at_least, bound_rays, misses_all
 from .jit import njit, specialise
-from .lanes import L_D, L_DT, L_FAR, L_HIT, L_INV, L_O, L_T0, L_TMIN, WIDTH, count_lanes, slab_lanes
+from .lanes import L_D, L_DT, L_FAR, L_HIT, L_INV, L_O, L_T0, L_TMIN, WIDTH, count_lanes, slab_lanes, slab_pair_lanes
 from .ray import H_TIN, R_D, R_DT, R_INV, R_O, R_T0, R_TMIN
 from .records import C_BOX_TESTS, C_NODES, C_PATCHES, C_SURFACES
 
@@ -110,11 +110,16 @@ def _children_rays(node_box, left, right, br, row_l, row_r, m, surfaces):
         if surfaces:
             count_lanes(br.walk_counts, W_SURFACES, g, bits, surfaces)
         shift = np.uint64(WIDTH * g)
-        if test_l:
+        if test_l and test_r:
+            both = slab_pair_lanes(lanes, L_O, g, l0, l1, l2, l3, l4, l5, r0, r1, r2, r3, r4, r5, br.node_tin, None,
+                                   row_l, row_r, lanes, L_TMIN, lanes, L_FAR)
+            alive_l |= (both & bits) << shift
+            alive_r |= ((both >> np.uint64(2 * WIDTH)) & bits) << shift
+        elif test_l:
             alive_l |= (slab_lanes(lanes, L_O, g, l0, l1, l2, l3, l4, l5, br.node_tin, None, row_l, lanes, L_TMIN,
                                     lanes, L_FAR)
                         & bits) << shift
-        if test_r:
+        elif test_r:
             alive_r |= (slab_lanes(lanes, L_O, g, r0, r1, r2, r3, r4, r5, br.node_tin, None, row_r, lanes, L_TMIN,
                                     lanes, L_FAR)
                         & bits) << shift

@@ -84,6 +84,47 @@ class _Lanes:
         return self.context.cast(self.builder, value, ty, types.intp)
 
 
+def _slab_vectors(v, builder, row, first, corners, t_in, t_out):
+    """ray.slab_at's operations for the eight rays of a group (row(k): lanes row k of the group;
+    first: the origins' first row) against the box `corners` (lo xyz, hi xyz), from the vectors
+    t_in, t_out: (entry, exit, meets)."""
+    intp = v.context.get_value_type(types.intp)
+    zero = v.constant(0.0)
+    fail = ir.Constant(ir.VectorType(ir.IntType(1), WIDTH), [0] * WIDTH)
+    vec = ir.VectorType(ir.DoubleType(), WIDTH)
+    fabs = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vec, [vec]), f'llvm.fabs.v{WIDTH}f64')
+    for c in range(3):
+        origin = row(builder.add(first, ir.Constant(intp, c)))
+        lo = builder.fsub(v.splat(corners[c]), origin)
+        hi = builder.fsub(v.splat(corners[3 + c]), origin)
+        flat = builder.fcmp_ordered('==', row(L_D + c), zero)  # slab tests this axis by containment
+        outside = builder.or_(builder.fcmp_ordered('>', lo, zero), builder.fcmp_ordered('<', hi, zero))
+        fail = builder.or_(fail, builder.and_(flat, outside))
+        inv = row(L_INV + c)
+        a = builder.fmul(lo, inv)
+        b = builder.fmul(hi, inv)
+        swap = builder.fcmp_ordered('>', a, b)
+        a, b = builder.select(swap, b, a), builder.select(swap, a, b)
+        b = builder.fadd(b, builder.fmul(builder.call(fabs, [b]), v.constant(T_SLACK)))
+        sloped = builder.not_(flat)
+        t_in = builder.select(builder.and_(sloped, builder.fcmp_ordered('>', a, t_in)), a, t_in)
+        t_out = builder.select(builder.and_(sloped, builder.fcmp_ordered('<', b, t_out)), b, t_out)
+    meets = builder.and_(builder.not_(fail), builder.fcmp_ordered('<=', t_in, t_out))
+    return t_in, t_out, meets
+
+
+def _verdict_bits(v, builder, t_in, meets, hit):
+    """bit k where lane k meets the box before its closest hit (`hit`), bit WIDTH + k where it
+    meets it at all (uint64)."""
+    ahead = builder.and_(meets, builder.fcmp_ordered('<', t_in, hit))
+    return builder.or_(v.bits(ahead), builder.shl(v.bits(meets), ir.Constant(ir.IntType(64), WIDTH)))
+
+
+def _slab_args_ok(lanes, tin, tout, start, stop) -> bool:
+    return (_is_2d(lanes, types.float64) and _is_2d(tin, types.float64) and _is_2d(start, types.float64)
+            and _is_2d(stop, types.float64) and (tout == types.none or _is_2d(tout, types.float64)))
+
+
 def slab_lanes(typingctx, lanes, origin, group, lo0, lo1, lo2, hi0, hi1, hi2, tin, tout, row, start, start_row,
                stop, stop_row):
     """The rays of lanes' group, from the origins in rows origin..origin + 2 (L_O, or L_PO in the
@@ -92,10 +133,9 @@ def slab_lanes(typingctx, lanes, origin, group, lo0, lo1, lo2, hi0, hi1, hi2, ti
     rows of tin and tout): each ray's entry t into tin[row, its column], its exit t into
     tout[row, ...] (tout None: not kept); bit k (uint64) set where ray WIDTH * group + k meets the
     box before its closest hit (lanes[L_HIT]), bit WIDTH + k where it meets the box at all."""
-    keep_out = tout != types.none
-    if not (_is_2d(lanes, types.float64) and _is_2d(tin, types.float64) and _is_2d(start, types.float64)
-            and _is_2d(stop, types.float64) and (not keep_out or _is_2d(tout, types.float64))):
+    if not _slab_args_ok(lanes, tin, tout, start, stop):
         return None
+    keep_out = tout != types.none
     sig = types.uint64(lanes, origin, group, *([types.float64] * 6), tin, tout, row, start, start_row, stop,
                        stop_row)
 
@@ -105,39 +145,58 @@ def slab_lanes(typingctx, lanes, origin, group, lo0, lo1, lo2, hi0, hi1, hi2, ti
         lanes_v, origin_v, group_v, *corners, tin_v, tout_v, row_v, start_v, start_row_v, stop_v, stop_row_v = args
         v = _Lanes(context, builder)
         g = v.index(group_v, group_ty)
-        first = v.index(origin_v, origin_ty)
-        intp = context.get_value_type(types.intp)
 
         def row(k):
             return v.load(lanes_ty, lanes_v, k, g)
         t_in = v.load(start_ty, start_v, v.index(start_row_v, start_row_ty), g)
         t_out = v.load(stop_ty, stop_v, v.index(stop_row_v, stop_row_ty), g)
-        zero = v.constant(0.0)
-        fail = ir.Constant(ir.VectorType(ir.IntType(1), WIDTH), [0] * WIDTH)
-        vec = ir.VectorType(ir.DoubleType(), WIDTH)
-        fabs = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vec, [vec]), f'llvm.fabs.v{WIDTH}f64')
-        for c in range(3):
-            origin = row(builder.add(first, ir.Constant(intp, c)))
-            lo = builder.fsub(v.splat(corners[c]), origin)
-            hi = builder.fsub(v.splat(corners[3 + c]), origin)
-            flat = builder.fcmp_ordered('==', row(L_D + c), zero)  # slab tests this axis by containment
-            outside = builder.or_(builder.fcmp_ordered('>', lo, zero), builder.fcmp_ordered('<', hi, zero))
-            fail = builder.or_(fail, builder.and_(flat, outside))
-            inv = row(L_INV + c)
-            a = builder.fmul(lo, inv)
-            b = builder.fmul(hi, inv)
-            swap = builder.fcmp_ordered('>', a, b)
-            a, b = builder.select(swap, b, a), builder.select(swap, a, b)
-            b = builder.fadd(b, builder.fmul(builder.call(fabs, [b]), v.constant(T_SLACK)))
-            sloped = builder.not_(flat)
-            t_in = builder.select(builder.and_(sloped, builder.fcmp_ordered('>', a, t_in)), a, t_in)
-            t_out = builder.select(builder.and_(sloped, builder.fcmp_ordered('<', b, t_out)), b, t_out)
+        t_in, t_out, meets = _slab_vectors(v, builder, row, v.index(origin_v, origin_ty), corners, t_in, t_out)
         v.store(t_in, tin_ty, tin_v, v.index(row_v, row_ty), g)
         if keep_out:
             v.store(t_out, tout_ty, tout_v, v.index(row_v, row_ty), g)
-        meets = builder.and_(builder.not_(fail), builder.fcmp_ordered('<=', t_in, t_out))
-        ahead = builder.and_(meets, builder.fcmp_ordered('<', t_in, row(L_HIT)))
-        return builder.or_(v.bits(ahead), builder.shl(v.bits(meets), ir.Constant(ir.IntType(64), WIDTH)))
+        return _verdict_bits(v, builder, t_in, meets, row(L_HIT))
+
+    return sig, codegen
+
+
+def slab_pair_lanes(typingctx, lanes, origin, group, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, tin, tout,
+                    row_a, row_b, start, start_row, stop, stop_row):
+    """slab_lanes for two boxes a and b (a BVH node's children, a sub-patch's halves) within the same
+    intervals, which may be a's own rows (every load comes before the stores): a's intervals into
+    row_a, b's into row_b; a's bits as slab_lanes returns them, b's shifted up by 2 * WIDTH."""
+    if not _slab_args_ok(lanes, tin, tout, start, stop):
+        return None
+    keep_out = tout != types.none
+    sig = types.uint64(lanes, origin, group, *([types.float64] * 12), tin, tout, row_a, row_b, start, start_row,
+                       stop, stop_row)
+
+    def codegen(context, builder, signature, args):
+        lanes_ty, origin_ty, group_ty = signature.args[:3]
+        tin_ty, tout_ty, row_a_ty, row_b_ty, start_ty, start_row_ty, stop_ty, stop_row_ty = signature.args[15:]
+        (lanes_v, origin_v, group_v, *corners, tin_v, tout_v, row_a_v, row_b_v, start_v, start_row_v, stop_v,
+         stop_row_v) = args
+        v = _Lanes(context, builder)
+        g = v.index(group_v, group_ty)
+        loaded = {}
+
+        def row(k):  # each lanes row loaded once for both boxes
+            key = str(k)
+            if key not in loaded:
+                loaded[key] = v.load(lanes_ty, lanes_v, k, g)
+            return loaded[key]
+        t_in = v.load(start_ty, start_v, v.index(start_row_v, start_row_ty), g)
+        t_out = v.load(stop_ty, stop_v, v.index(stop_row_v, stop_row_ty), g)
+        hit = row(L_HIT)
+        first = v.index(origin_v, origin_ty)
+        in_a, out_a, meets_a = _slab_vectors(v, builder, row, first, corners[:6], t_in, t_out)
+        in_b, out_b, meets_b = _slab_vectors(v, builder, row, first, corners[6:], t_in, t_out)
+        for t_in_x, t_out_x, row_v, row_ty in ((in_a, out_a, row_a_v, row_a_ty), (in_b, out_b, row_b_v, row_b_ty)):
+            v.store(t_in_x, tin_ty, tin_v, v.index(row_v, row_ty), g)
+            if keep_out:
+                v.store(t_out_x, tout_ty, tout_v, v.index(row_v, row_ty), g)
+        bits_a = _verdict_bits(v, builder, in_a, meets_a, hit)
+        bits_b = _verdict_bits(v, builder, in_b, meets_b, hit)
+        return builder.or_(bits_a, builder.shl(bits_b, ir.Constant(ir.IntType(64), 2 * WIDTH)))
 
     return sig, codegen
 
@@ -278,6 +337,21 @@ def slab_lanes_python(lanes, origin, group, lo0, lo1, lo2, hi0, hi1, hi2, tin, t
     return np.uint64(_to_bits(meets & (t_in < lanes[L_HIT, cols])) | (_to_bits(meets) << np.uint64(WIDTH)))
 
 
+def slab_pair_lanes_python(lanes, origin, group, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, tin, tout, row_a,
+                           row_b, start, start_row, stop, stop_row):
+    cols = _columns(group)
+    start = start[start_row, cols].copy().reshape(1, WIDTH)
+    stop = stop[stop_row, cols].copy().reshape(1, WIDTH)
+    pad = np.zeros((1, tin.shape[1]))
+    full_start, full_stop = pad.copy(), pad.copy()
+    full_start[0, cols], full_stop[0, cols] = start[0], stop[0]
+    bits_a = slab_lanes_python(lanes, origin, group, a0, a1, a2, a3, a4, a5, tin, tout, row_a, full_start, 0,
+                               full_stop, 0)
+    bits_b = slab_lanes_python(lanes, origin, group, b0, b1, b2, b3, b4, b5, tin, tout, row_b, full_start, 0,
+                               full_stop, 0)
+    return np.uint64(int(bits_a) | (int(bits_b) << (2 * WIDTH)))
+
+
 def ahead_lanes_python(tin, row, lanes, group, bits):
     cols = _columns(group)
     return _to_bits(_from_bits(bits) & (tin[row, cols] < lanes[L_HIT, cols]))
@@ -304,9 +378,11 @@ def count_lanes_python(counts, column, group, bits, n):
 
 if config.DISABLE_JIT:
     slab_lanes, ahead_lanes, at_start_lanes = slab_lanes_python, ahead_lanes_python, at_start_lanes_python
+    slab_pair_lanes = slab_pair_lanes_python
     nearest_lanes, count_lanes = nearest_lanes_python, count_lanes_python
     within_detail_lanes = within_detail_lanes_python
 else:
     slab_lanes, ahead_lanes, at_start_lanes = intrinsic(slab_lanes), intrinsic(ahead_lanes), intrinsic(at_start_lanes)
+    slab_pair_lanes = intrinsic(slab_pair_lanes)
     nearest_lanes, count_lanes = intrinsic(nearest_lanes), intrinsic(count_lanes)
     within_detail_lanes = intrinsic(within_detail_lanes)
