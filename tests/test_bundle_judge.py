@@ -1,4 +1,4 @@
-"""The bundle's adaptive judgement as masks (bundle._judge_detail) against the single ray's
+"""The bundle's adaptive judgement as masks (bundle_steps.judge_detail) against the single ray's
 search_steps.judge_known, ray by ray: which rays stop, which go on, and for the first of those
 the criterion diameter and whether the box shrank (which its halves inherit).
 
@@ -14,6 +14,7 @@ from numba import config as numba_config
 from numba import njit
 
 from tracer import bundle as B
+from tracer import bundle_steps
 from tracer import lanes as L
 from tracer.ray import R_DT, R_T0, RAY_LEN
 from tracer.records import Leaves, PatchInfo, Query, Slots
@@ -27,7 +28,7 @@ STEP = 2.0 ** -12  # the leaf's grid
 
 
 def _judge_rays(sl, pa, lv, q, br, row, live):
-    return B._judge_detail(sl, 0, pa, lv, q, br, row, live)
+    return bundle_steps.judge_detail(sl, 0, pa, lv, q, br, row, live)
 
 
 def _judge_one(sl, pa, lv, q, ray):

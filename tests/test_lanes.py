@@ -225,7 +225,7 @@ def test_bundles_report_the_single_rays_bits_interpreted_too():
 @pytest.mark.interpreted
 def test_slab_pair_lanes_are_two_slab_lanes():
     """The pair test is slab_lanes for each box, bit for bit, also where the boxes' interval is the
-    first box's own rows (a sub-patch's halves within their parent's interval, as bundle.open_pair
+    first box's own rows (a sub-patch's halves within their parent's interval, as bundle_steps.open_pair
     tests them): every load comes before the stores."""
     rng = np.random.default_rng(72)
     count = L.WIDTH * GROUPS

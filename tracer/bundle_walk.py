@@ -9,8 +9,8 @@ import math
 import numpy as np
 
 from .aggregate import BvhNodes  # noqa: F401 (the record the walk reads)
-from .bundle import (ONE, W_BOX_TESTS, W_NODES, W_PATCHES, W_SURFACES, ZERO, ahead_in, group_bits, lowest_bit,
-                     nearest_in)
+from .bundle_steps import (ONE, W_BOX_TESTS, W_NODES, W_PATCHES, W_SURFACES, ZERO, ahead_in, group_bits,
+                           lowest_bit, nearest_in)
 from .frustum import MIN_RAYS, at_least, bound_rays, misses_all
 from .jit import njit, specialise
 from .lanes import L_D, L_DT, L_FAR, L_HIT, L_INV, L_O, L_T0, L_TMIN, WIDTH, count_lanes, slab_lanes, slab_pair_lanes

@@ -225,9 +225,9 @@ def _compare(op, lanes_row, doc):
 
 
 ahead_lanes = _compare('<', L_HIT, """bits less the rays whose entry t (tin[row]) is not before their
-closest hit (lanes[L_HIT]): the prune of bundle.ahead.""")
+closest hit (lanes[L_HIT]): the prune of bundle_steps.ahead_in.""")
 at_start_lanes = _compare('<=', L_TMIN, """bits where the entry t (tin[row]) is at or before t_min: the
-boxes holding a ray's origin, which bundle._slot_rays tests further.""")
+boxes holding a ray's origin, which bundle_steps._off_side tests further.""")
 
 
 def within_detail_lanes(typingctx, tin, row, lanes, group, bits, size):

@@ -28,7 +28,8 @@ import threading
 
 import numpy as np
 
-from .bundle import MAX_RAYS, ONE, ZERO, bundle_rays, make_bundle_search
+from .bundle import MAX_RAYS, bundle_rays, make_bundle_search
+from .bundle_steps import ONE, ZERO
 from .bundle_walk import make_bvh_bundle_walk
 from .jit import njit, specialise
 from .kernel_channels import Outputs, allocate

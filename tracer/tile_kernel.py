@@ -12,7 +12,8 @@ import math
 import numpy as np
 
 from .aggregate import WALKS, walk_scratch
-from .bundle import ONE, ZERO, bundle_rays, make_bundle_search
+from .bundle import bundle_rays, make_bundle_search
+from .bundle_steps import ONE, ZERO
 from .bundle_walk import make_bvh_bundle_walk
 from .drivers import make_search
 from .jit import njit, specialise
