@@ -262,7 +262,7 @@ def test_python_cubic_split_bit_identical_to_simd(dtype, axis):
 
 
 def _dist_range_loop(buf, s, n0, n1, n2):
-    """subpatch.hull_off_plane's scalar loop over 16 points, as numba runs it (min, max: keep the
+    """hull.hull_off_plane's scalar loop over 16 points, as numba runs it (min, max: keep the
     accumulator unless the new value is smaller, larger)."""
     lo, hi = math.inf, -math.inf
     for k in range(16):

@@ -1,4 +1,4 @@
-"""The side plane of secondary rays (ray.set_side, subpatch.hull_behind): a sub-patch whose box holds
+"""The side plane of secondary rays (ray.set_side, hull.hull_behind): a sub-patch whose box holds
 a ray's origin is dropped once its hull lies wholly behind the plane through the origin that the
 ray leaves in front of. Under the float criterion no answer moves and fewer boxes are computed;
 under coarse criteria the only answers that move are hits on the origin's own patch, in a box

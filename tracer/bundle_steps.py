@@ -11,11 +11,10 @@ import numpy as np
 from .jit import njit
 from .lanes import (L_FAR, L_PO, L_TMIN, WIDTH, ahead_lanes, at_start_lanes, count_lanes, nearest_lanes, slab_lanes,
                     slab_pair_lanes, within_detail_lanes)
+from .hull import hull_behind, hull_hit, hull_off_plane, seam_plane
 from .ray import H_PATCH, H_TIN
 from .search_steps import GRID_PREFILTER
-from .subpatch import (I_DEPTH, I_STALLED, M_D, M_DPAR, M_GULP, M_OX, M_U0, M_U1, M_V0, M_V1, M_W, hull_behind,
-                       hull_hit, hull_off_plane, seam_plane)
-from .subpatch import grid_l1
+from .subpatch import I_DEPTH, I_STALLED, M_D, M_DPAR, M_GULP, M_OX, M_U0, M_U1, M_V0, M_V1, M_W, grid_l1
 
 ONE = np.uint64(1)
 ZERO = np.uint64(0)

@@ -19,7 +19,8 @@ from __future__ import annotations
 from .jit import njit, specialise
 from .ray import R_D, R_O
 from .search_steps import enter_frame, halve, judge, root, tighten, trim_state
-from .subpatch import M_OX, M_TIN, M_TOUT, hull_behind, patch_info
+from .hull import hull_behind
+from .subpatch import M_OX, M_TIN, M_TOUT, patch_info
 
 REL = 2.0 ** -44  # relative slack beyond the slab test's own (it widens its exits by 2^-50)
 

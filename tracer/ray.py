@@ -178,7 +178,7 @@ def set_side(ray, nx, ny, nz):
     """Record the plane through the ray's origin with normal (nx, ny, nz), the side a secondary ray
     leaves its surface on, where the ray goes in front of it (n . d > 0, the products exact to
     within a few ulps: a margin of 2^-40 of |n| |d| leaves no doubt): sub-patches whose hulls lie
-    wholly behind it cannot meet the ray (subpatch.hull_behind)."""
+    wholly behind it cannot meet the ray (hull.hull_behind)."""
     dot = nx * ray[R_D] + ny * ray[R_D + 1] + nz * ray[R_D + 2]
     size = (abs(nx) + abs(ny) + abs(nz)) * (abs(ray[R_D]) + abs(ray[R_D + 1]) + abs(ray[R_D + 2]))
     keep = dot > 2.0 ** -40 * size and ray[R_TMIN] >= 0.0

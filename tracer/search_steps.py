@@ -17,10 +17,10 @@ from .jit import njit
 
 from .ray import (H_DEPTH, H_DU, H_DV, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_U0, H_V, H_V0, R_DT, R_O, R_T0,
                   R_TMIN, before_best)
+from .hull import hull_behind, hull_hit, hull_off_plane, seam_plane
 from .subpatch import (I_DEPTH, I_LAST, I_STALLED, I_STEP, I_TRIM, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN,
-                       M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, REFINE, RECENTRE, grid_l1, hull_behind, hull_hit,
-                       hull_off_plane, open_box, raw_box, recentre, refine, seam_plane, snap_down, snap_up, split,
-                       split_direction, ulp, widen, within_ulps)
+                       M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, REFINE, RECENTRE, grid_l1, open_box, raw_box, recentre,
+                       refine, snap_down, snap_up, split, split_direction, ulp, widen, within_ulps)
 from .trim_kernel import rect_meets_loops, trim_inside
 
 # Termination criteria (codes as in options.CRITERION_CODE).

@@ -8,7 +8,7 @@ whole rows; halving in u transposes first, so each vector holds a column. The ar
 the scalar split's, lane by lane: (a + b) * 0.5 in the buffer's dtype, no fused or reordered
 operations, so results are bit-identical (tests/test_bezier.py checks).
 
-The hull test (subpatch.hull_off_plane) measures each of a slot's 16 control points across a
+The hull test (hull.hull_off_plane) measures each of a slot's 16 control points across a
 plane through the ray: here the 16 points are one vector per coordinate, converted to float64,
 and x n0 + y n1 + z n2 is formed lane by lane as the scalar loop forms it; the least and greatest
 value are exact (min and max do not round; which of two equal zeros comes out cannot matter
