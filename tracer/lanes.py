@@ -177,13 +177,9 @@ def slab_pair_lanes(typingctx, lanes, origin, group, a0, a1, a2, a3, a4, a5, b0,
          stop_row_v) = args
         v = _Lanes(context, builder)
         g = v.index(group_v, group_ty)
-        loaded = {}
 
-        def row(k):  # each lanes row loaded once for both boxes
-            key = str(k)
-            if key not in loaded:
-                loaded[key] = v.load(lanes_ty, lanes_v, k, g)
-            return loaded[key]
+        def row(k):  # (both boxes load a row alike before any store: LLVM keeps one load)
+            return v.load(lanes_ty, lanes_v, k, g)
         t_in = v.load(start_ty, start_v, v.index(start_row_v, start_row_ty), g)
         t_out = v.load(stop_ty, stop_v, v.index(stop_row_v, stop_row_ty), g)
         hit = row(L_HIT)
@@ -339,16 +335,9 @@ def slab_lanes_python(lanes, origin, group, lo0, lo1, lo2, hi0, hi1, hi2, tin, t
 
 def slab_pair_lanes_python(lanes, origin, group, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, tin, tout, row_a,
                            row_b, start, start_row, stop, stop_row):
-    cols = _columns(group)
-    start = start[start_row, cols].copy().reshape(1, WIDTH)
-    stop = stop[stop_row, cols].copy().reshape(1, WIDTH)
-    pad = np.zeros((1, tin.shape[1]))
-    full_start, full_stop = pad.copy(), pad.copy()
-    full_start[0, cols], full_stop[0, cols] = start[0], stop[0]
-    bits_a = slab_lanes_python(lanes, origin, group, a0, a1, a2, a3, a4, a5, tin, tout, row_a, full_start, 0,
-                               full_stop, 0)
-    bits_b = slab_lanes_python(lanes, origin, group, b0, b1, b2, b3, b4, b5, tin, tout, row_b, full_start, 0,
-                               full_stop, 0)
+    parent = np.stack([start[start_row], stop[stop_row]])  # a copy: a's stores may overwrite its rows
+    bits_a = slab_lanes_python(lanes, origin, group, a0, a1, a2, a3, a4, a5, tin, tout, row_a, parent, 0, parent, 1)
+    bits_b = slab_lanes_python(lanes, origin, group, b0, b1, b2, b3, b4, b5, tin, tout, row_b, parent, 0, parent, 1)
     return np.uint64(int(bits_a) | (int(bits_b) << (2 * WIDTH)))
 
 
