@@ -16,10 +16,10 @@ Integral patches only (rational ones are searched in float64 slots: drivers.make
 """
 from __future__ import annotations
 
+from .hull import hull_behind
 from .jit import njit, specialise
 from .ray import R_D, R_O
 from .search_steps import enter_frame, halve, judge, root, tighten, trim_state
-from .hull import hull_behind
 from .subpatch import M_OX, M_TIN, M_TOUT, patch_info
 
 REL = 2.0 ** -44  # relative slack beyond the slab test's own (it widens its exits by 2^-50)
