@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import digests as D  # noqa: E402
 from tracer.camera import View, framing_view  # noqa: E402
 from tracer.geometry import prepare  # noqa: E402
-from tracer.options import BUNDLES, ORDERS, Options  # noqa: E402
+from tracer.options import BUNDLES, ORDERS, PLAIN, Options  # noqa: E402
 from tracer.render import render  # noqa: E402
 
 EXACT = ("hit", "t", "position", "box_min", "box_max", "normal", "uv", "patch")
@@ -38,7 +38,7 @@ def random_case(rng, scenes, criteria):
     eye = np.asarray(framed.eye) + (target - np.asarray(framed.look_at)) * rng.choice([0.0, 1.0])
     look = target if rng.random() < 0.7 else np.asarray(framed.look_at)
     view = View(tuple(eye), tuple(look), framed.up, framed.fov_deg)
-    plain = Options(criterion=rng.choice(criteria), precision=rng.choice(["f32", "f64"]), split="length")
+    plain = Options(criterion=rng.choice(criteria), precision=rng.choice(["f32", "f64"]), split="length", **PLAIN)
     setting = plain.with_(bundle=rng.choice(BUNDLES[1:]), accel=rng.choice(["bvh", "kdtree", "grid"]),
                           cache=rng.random() < 0.5, order=rng.choice(ORDERS), mailbox=rng.random() < 0.5)
     return name, view, plain, setting

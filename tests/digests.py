@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import scenes as S  # noqa: E402
 from tracer.camera import view_of  # noqa: E402
 from tracer.geometry import prepare  # noqa: E402
-from tracer.options import CRITERIA, PRECISIONS, SPLITS, Options  # noqa: E402
+from tracer.options import CRITERIA, PLAIN, PRECISIONS, SPLITS, Options  # noqa: E402
 from tracer.render import render  # noqa: E402
 from tracer.scene import load_scene, scene_from_dict  # noqa: E402
 
@@ -74,12 +74,13 @@ def catalogue() -> dict:
 
 
 def variants():
-    """Every criterion x split x precision, as (key, Options)."""
+    """Every criterion x split x precision, as (key, Options), in the plain setting (single rays:
+    test_coherence_exact holds every other setting to its bits)."""
     for precision in PRECISIONS:
         for criterion in CRITERIA:
             for split in SPLITS:
                 yield f"{criterion}/{split}/{precision}", Options(criterion=criterion, split=split,
-                                                                  precision=precision)
+                                                                  precision=precision, **PLAIN)
 
 
 def channel_digest(array: np.ndarray) -> str:

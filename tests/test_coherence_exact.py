@@ -20,7 +20,7 @@ import pytest
 import digests as D
 from tracer.camera import View
 from tracer.geometry import prepare
-from tracer.options import Options
+from tracer.options import PLAIN, Options
 from tracer.render import render
 
 EXACT = ("hit", "t", "position", "box_min", "box_max", "normal", "uv", "patch")
@@ -50,7 +50,7 @@ def test_every_coherence_setting_reports_the_plain_bits(case, criterion, precisi
     scene, own_view = D.catalogue()[name][0]()
     view = view or own_view
     geom = prepare(scene, precision)
-    plain = Options(criterion=criterion, precision=precision, split="length")
+    plain = Options(criterion=criterion, precision=precision, split="length", **PLAIN)
     base = render(scene, plain, size=size, view=view, geometry=geom, lighting=False)
     assert base.hit.sum() > 0.2 * size[0] * size[1]
     bad = []

@@ -43,7 +43,7 @@ def test_per_ray_counters_are_the_channels_means():
 
 
 def test_a_cold_cache_makes_each_searched_surface_once_and_a_warm_one_none(sample):
-    opts = Options(threads=1, cache=True, cache_mb=256.0)
+    opts = Options(threads=1, cache=True, cache_mb=256.0, bundle="1x1")  # one ray a search
     cold = frame_stats(_frame(sample, opts))["coherence"]
     frame = _frame(sample, opts, fresh=False)  # the trees of the frame before are still there
     warm = frame_stats(frame)["coherence"]

@@ -51,7 +51,7 @@ import json, sys
 sys.path.insert(0, "tests")
 import digests as D
 from tracer.options import Options
-print(json.dumps(D.variant_digests(sys.argv[1], Options(criterion="float", precision="f64"))))
+print(json.dumps(D.variant_digests(sys.argv[1], Options(criterion="float", precision="f64", bundle="1x1"))))
 """
 
 

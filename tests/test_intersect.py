@@ -473,6 +473,7 @@ def test_trace_events_are_consistent(opts):
     effort counts the steps; depths and parameter intervals nest; and it agrees with render."""
     scene = S.teapot()
     size = (24, 24)
+    opts = opts.with_(bundle="1x1")  # rays traced alone, as trace_one traces one
     geom = prepare(scene, opts.precision)
     # the renderer's kernel on every third pixel (the rays render() would trace there)
     origins, dirs = primary_rays(S.LID_VIEW, *size, opts.precision)

@@ -168,6 +168,15 @@ def test_a_fresh_process_loads_the_kernels_from_the_cache():
     assert report and all(r["cached"] for r in report), report
 
 
+def test_a_box_budget_with_bundles_is_refused():
+    from tracer.render import trace_rays
+    geom = prepare(_scene("teapot"), "f64")
+    origins, dirs = primary_rays(view_of(_scene("teapot")), 8, 8, "f64")
+    with pytest.raises(ValueError, match="a box budget bounds single rays: bundle 8x8"):
+        trace_rays(geom, Options(precision="f64", bundle="8x8"), origins, dirs, 0.0,
+                   budget=(1.0, np.zeros((8, 8), np.int32)))
+
+
 def test_a_box_budget_bounds_each_ray_and_marks_where_it_ran_out():
     """The float64 reference's bound: a ray may compute `budget` boxes; one that needed fewer is
     untouched, one that needed more stops there (a box or two over) and is marked unresolved."""
@@ -177,7 +186,7 @@ def test_a_box_budget_bounds_each_ray_and_marks_where_it_ran_out():
     geom = prepare(scene, "f64")
     view = view_of(scene)
     origins, dirs = primary_rays(view, 24, 24, "f64")
-    opts = Options(precision="f64")
+    opts = Options(precision="f64", bundle="1x1")  # a budget bounds single rays
     free = trace_rays(geom, opts, origins, dirs, 0.0)
     budget = 200
     cut = trace_rays(geom, opts, origins, dirs, 0.0,

@@ -109,7 +109,7 @@ def test_peano_units_cut_one_curve():
 
 
 def test_peano_starts_in_the_top_left_quadrant():
-    units = work_units(128, 128, Options(order="peano", tile_size=16))
+    units = work_units(128, 128, Options(order="peano", tile_size=16, bundle="1x1"))
     assert len(units) == 64 and all(u.rect[1] <= 64 and u.rect[3] <= 64 for u in units[:16])
     assert not any(u.rect[1] <= 64 and u.rect[3] <= 64 for u in units[16:])
 
@@ -195,7 +195,7 @@ def test_bad_orders_are_refused_in_one_line():
 
 @pytest.fixture(scope="module")
 def scanline_frame(teapot):
-    frame = render(teapot, Options(tile_size=8), size=(40, 32))
+    frame = render(teapot, Options(tile_size=8, bundle="1x1"), size=(40, 32))
     return frame, reference_frame(teapot, frame)
 
 
@@ -211,7 +211,7 @@ def test_frame_channels_do_not_depend_on_the_order(teapot, scanline_frame, order
     """Every channel of the frame and of its float64 reference, bit for bit (bundle 1x1: the only
     one traced in this build); the reference is traced in the frame's order and units."""
     want, want_ref = scanline_frame
-    opts = Options(order=order, tile_size=tile_size, threads=1)
+    opts = Options(order=order, tile_size=tile_size, threads=1, bundle="1x1")
     seen = []
     frame = render(teapot, opts, size=(40, 32), on_tile=lambda f, u: seen.append(u.rect))
     expected = work_units(40, 32, opts, prepare(teapot, "f32"), view_of(teapot))
@@ -228,7 +228,7 @@ def test_frame_channels_do_not_depend_on_the_order(teapot, scanline_frame, order
 
 def test_scattered_pixels_shade_as_the_whole_image(teapot, scanline_frame):
     frame, _ = scanline_frame
-    pixels = work_units(40, 32, Options(order="itembuffer", tile_size=8), prepare(teapot, "f32"),
+    pixels = work_units(40, 32, Options(order="itembuffer", tile_size=8, bundle="1x1"), prepare(teapot, "f32"),
                         view_of(teapot))[1].pixels
     for mode in MODES:
         whole = shade(frame, teapot, mode, rect=(0, 32, 0, 40))
@@ -260,7 +260,8 @@ def test_orders_make_the_same_searches_with_a_bounded_cache(teapot, scanline_fra
     geom = prepare(teapot, "f32")
     frames = {}
     for mb, depth in ((1.0, 30), (4096.0, 4)):
-        opts = Options(order=order, tile_size=8, threads=1, cache=True, cache_mb=mb, cache_depth=depth)
+        opts = Options(order=order, tile_size=8, threads=1, cache=True, cache_mb=mb, cache_depth=depth,
+                       bundle="1x1")
         frames[mb] = render(teapot, opts, size=(40, 32), geometry=geom)
         for name in AOV_NAMES:
             if name not in ("cache_hits", "cache_misses"):

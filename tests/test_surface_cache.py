@@ -12,7 +12,7 @@ import pytest
 import digests as D
 import tracer.surface_cache as SC
 from tracer.geometry import prepare
-from tracer.options import Options
+from tracer.options import PLAIN, Options
 from tracer.render import cache_summary, render
 
 CHANNELS = ("hit", "t", "position", "box_min", "box_max", "normal", "uv", "patch", "effort", "nodes",
@@ -34,7 +34,7 @@ def _same(a, b):
 def test_cached_renders_are_the_uncached_bits(name, criterion):
     scene, view = D.catalogue()[name][0]()
     geom = prepare(scene, "f32")
-    plain = Options(criterion=criterion, threads=1)
+    plain = Options(criterion=criterion, threads=1, **PLAIN)
     alone = render(scene, plain, size=(24, 24), view=view, geometry=geom)
     first = render(scene, plain.with_(cache=True), size=(24, 24), view=view, geometry=geom)
     again = render(scene, plain.with_(cache=True), size=(24, 24), view=view, geometry=geom)
@@ -48,8 +48,8 @@ def test_cached_renders_are_the_uncached_bits(name, criterion):
 def test_a_pool_too_small_for_the_scene_releases_trees_and_changes_nothing():
     scene, view = D.catalogue()["teapot"][0]()
     geom = prepare(scene, "f32")
-    alone = render(scene, Options(threads=1), size=(32, 32), view=view, geometry=geom)
-    tiny = Options(threads=1, cache=True, cache_mb=1.0, cache_depth=30)
+    alone = render(scene, Options(threads=1, **PLAIN), size=(32, 32), view=view, geometry=geom)
+    tiny = Options(threads=1, **PLAIN).with_(cache=True, cache_mb=1.0, cache_depth=30)
     frame = render(scene, tiny, size=(32, 32), view=view, geometry=geom)
     assert not _same(frame, alone)
     summary = cache_summary(geom)
@@ -108,7 +108,7 @@ def test_the_queue_and_the_pool_follow_a_python_model():
 def test_bundles_share_the_cache_and_change_nothing(bundle):
     scene, view = D.catalogue()["teapot"][0]()
     geom = prepare(scene, "f32")
-    alone = render(scene, Options(threads=1), size=(24, 24), view=view, geometry=geom)
+    alone = render(scene, Options(threads=1, **PLAIN), size=(24, 24), view=view, geometry=geom)
     opts = Options(threads=1, bundle=bundle, cache=True)
     first = render(scene, opts, size=(24, 24), view=view, geometry=geom)
     again = render(scene, opts, size=(24, 24), view=view, geometry=geom)

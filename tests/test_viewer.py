@@ -154,7 +154,7 @@ def test_a_scattered_unit_paints_only_its_own_pixels(warm_kernels, teapot):
         (_, (_, colour)), = [e for e in events if e[0] == "frame_start"]
         seen.update(unit=events[-1][1], colour=colour.copy(), preview=upscale(rgb, COARSE, SIZE))
 
-    events = run_worker(teapot, Options(order="itembuffer", tile_size=16, threads=1), first_tile)
+    events = run_worker(teapot, Options(order="itembuffer", tile_size=16, threads=1, bundle="1x1"), first_tile)
     unit, colour, preview = seen["unit"], seen["colour"], seen["preview"]
     assert not fills_rect(unit.pixels, unit.rect)
     mine = np.zeros(colour.shape[:2], bool)
@@ -302,12 +302,13 @@ def test_itembuffer_units_appear_over_the_preview(xvfb, warm_kernels, tmp_path, 
     from viewer.worker import COARSE, upscale
     shot, first = tmp_path / "view.png", tmp_path / "first.png"
     code, status, err = run_view(xvfb, [TEAPOT, "--size", "128x128", "--set", "order=itembuffer", "--set",
-                                        "tile_size=16", "--set", "threads=1", "--screenshot", shot], tmp_path,
+                                        "tile_size=16", "--set", "threads=1", "--set", "bundle=1x1", "--screenshot",
+                                        shot], tmp_path,
                                  env={"PSRT_HOOK_SHOT": str(first)}, hooks="shot-first-tile")
     assert code == 0, err
     assert status["render"]["traced_options"]["order"] == "itembuffer" and status["renders"]["started"] == 1
     compare_images(read_png(shot), headless(teapot), tmp_path, "itembuffer", SCREENSHOT_TOLERANCE)
-    opts = Options(order="itembuffer", tile_size=16)
+    opts = Options(order="itembuffer", tile_size=16, bundle="1x1")
     coarse = render(teapot, opts, size=(SIZE[0] // COARSE, SIZE[1] // COARSE))
     expected = upscale(shade(coarse, teapot), COARSE, SIZE)
     unit = work_units(*SIZE, opts, prepare(teapot, "f32"), view_of(teapot))[0]

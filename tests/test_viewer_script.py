@@ -21,7 +21,7 @@ from viewer_util import (REPO, SCREENSHOT_TOLERANCE, TEAPOT, headless, read_stat
                          teapot, view_command, warm_kernels, xvfb)
 from view_hooks import HOLD_FRAMES
 
-F32_VARIANT = "f32 bicubic+bilinear closest bvh"  # the teapot's (tracer.variants.label)
+F32_VARIANT = "f32 bicubic+bilinear bundles closest bvh"  # the teapot's (tracer.variants.label; 8x8 bundles)
 INTERRUPT_BOUND = 5.0  # seconds from SIGINT to exit allowed here; about 0.3-0.6 s measured (README)
 
 

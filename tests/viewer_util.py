@@ -119,6 +119,7 @@ def warm_kernels(teapot):
     from tracer.trace_one import trace_pixel
     frame = render(teapot, Options(), size=(4, 4))
     reference_frame(teapot, frame)
+    render(teapot, Options(bundle="1x1"), size=(4, 4))  # (single rays: the itembuffer tests' scattered units)
     trace_pixel(teapot, Options(), 2, 2, size=(4, 4))
     trace_pixel(teapot, Options(precision="f64", criterion="float"), 2, 2, size=(4, 4))
 

@@ -31,12 +31,12 @@ from .bvh import build_bvh
 from .camera import primary_rays, view_of
 from .geometry import prepare
 from .options import BUNDLES, ORDERS, Options
+from .options import PLAIN as PLAIN_SETTING
 from .render import fresh_caches, thread_count, trace_rays
 from .stats import frame_stats
 from .surface_cache import mib_for_every_tree
 
-PLAIN = {"criterion": "float", "bundle": "1x1", "accel": "bvh", "mailbox": False, "cache": False,
-         "order": "scanline"}
+PLAIN = {"criterion": "float", **PLAIN_SETTING}
 BUNDLE_CRITERIA = ("float", "adaptive", "fixed")
 KD_DEPTHS = (10, 20, 30)
 GRID_SCALES = (0.25, 0.5, 1.0)

@@ -304,6 +304,8 @@ def trace_rays(geom: Geometry, opts: Options, origins, dirs, pixel_angle: float,
     outs = frame.outputs()
     trace = no_trace()
     variant = variant_for(geom, opts, driver=driver)
+    if budget is not None and variant.bundle:
+        raise ValueError(f"a box budget bounds single rays: bundle {opts.bundle} asked for (1x1 needed)")
     args = (inputs.scene, inputs.query, inputs.sizes[0], inputs.leaf_patch, outs, trace)
     no_pixels = (np.zeros((0, 2), np.int32), np.zeros(1, np.int32))
     kernel = compiled("tile", variant, no_pixels + (origins, dirs) + args + (tile_scratch(inputs),), on_compile)
@@ -411,9 +413,9 @@ REFERENCE_BUDGET = 16.0
 def reference_frame(scene, frame: Frame, geometry: Geometry | None = None, **kwargs) -> Frame:
     """The float64, float-criterion render of exactly the rays of `frame` (the error reference),
     each ray bounded to REFERENCE_BUDGET times the boxes it cost `frame` (see `unresolved`), in
-    the frame's pixel order and units."""
+    the frame's pixel order and tile size, ray by ray (a budget bounds single rays)."""
     geom = geometry if geometry is not None else prepare(scene, "f64")
     same_units = {k: frame.extras[k] for k in ("order", "tile_size") if k in frame.extras}
-    opts = Options(criterion="float", precision="f64", **same_units)
+    opts = Options(criterion="float", precision="f64", bundle="1x1", **same_units)  # a budget bounds single rays
     return trace_rays(geom, opts, frame.ray_origin, frame.ray_dir, 0.0, budget=(REFERENCE_BUDGET, frame.effort),
                       view=frame.extras.get("view"), **kwargs)

@@ -20,7 +20,7 @@ import numpy as np
 
 from .camera import primary_rays, view_of
 from .geometry import prepare
-from .options import Options
+from .options import PLAIN, Options
 from .render import reference_frame, trace_rays
 from .study_coherence import CANDIDATES, ROUNDS, Trial, run_trial, settings, trials
 from .study_truth import box_slack, polished_truth
@@ -75,7 +75,7 @@ def points(size: float, base: Options = Options(), precisions=PRECISIONS, chosen
     """Every psrt configuration of the study, series by series: per precision the plain series, then
     (chosen: {(criterion, precision): coherence setting}, study_coherence.py) the coherence series,
     named by their setting."""
-    base = base.with_(threads=1)
+    base = base.with_(threads=1, **PLAIN)  # the plain series; a coherence series sets its own
     fields = sweep_options(size)
     out = []
     for precision in precisions:
@@ -169,7 +169,7 @@ def prepare_study(scene, size, view=None) -> Study:
     origins, dirs = primary_rays(view, width, height, "f32")
     geoms = {p: prepare(scene, p) for p in PRECISIONS}
     pixel_angle = view.pixel_angle(height)
-    frame = trace_rays(geoms["f32"], Options(threads=1), origins, dirs, pixel_angle)
+    frame = trace_rays(geoms["f32"], Options(threads=1).with_(**PLAIN), origins, dirs, pixel_angle)
     ref = reference_frame(scene, frame, geoms["f64"])
     extent = scene_size(scene)
     position, accepted = polished_truth(scene, geoms["f64"], ref, extent)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .options import ACCELS, BUNDLES, Options
+from .options import ACCELS, BUNDLES, PLAIN, Options
 
 # Candidates, each a '+'-joined spec: a bundle (columns x rows), 'cache', an accelerator, 'mailbox'.
 CANDIDATES = ("4x4", "8x8", "4x4+cache", "8x8+cache", "grid+mailbox")
@@ -44,7 +44,7 @@ def settings(spec: str) -> dict:
         raise ValueError(f"coherence setting {spec!r}: bundles go through the BVH only")
     if out.get("mailbox") and accel == "bvh":
         raise ValueError(f"coherence setting {spec!r}: the mailbox is for the kd-tree and the grid")
-    if all(getattr(Options(), k) == v for k, v in out.items()):
+    if all(PLAIN[k] == v for k, v in out.items()):
         raise ValueError(f"coherence setting {spec!r} is the plain setting, which is always measured")
     return out
 
@@ -69,7 +69,7 @@ class Trial:
 def trials(sweep_options: dict, precisions, base: Options, candidates=CANDIDATES, rounds: int = ROUNDS) -> list:
     """A Trial per precision and criterion; sweep_options[criterion](parameter) gives the criterion's
     option fields at a parameter (study.sweep_options)."""
-    base = base.with_(threads=1)
+    base = base.with_(threads=1, **PLAIN)
     return [Trial(c, p, TRIAL_PARAMETERS[c],
                   base.with_(criterion=c, precision=p, **sweep_options[c](TRIAL_PARAMETERS[c])),
                   tuple(candidates), rounds)
