@@ -29,6 +29,18 @@ NEAR_MISS_PIXEL = (70, 35)   # passes through patch boxes beside the lid and mis
 
 # ---- no display needed --------------------------------------------------------------------
 
+def test_the_inspector_says_a_bundled_frame_s_ray_was_traced_alone():
+    """A frame traced in bundles counts each pixel's boxes in its bundle's order of visits; the
+    inspector's trace is of the ray alone, and its summary says so."""
+    from types import SimpleNamespace
+    from viewer.state import Inspection
+    from viewer.ui_inspector import summary_rows
+    trace = SimpleNamespace(pixel=(1, 2), hit=False, effort=42, steps_f=[0, 0, 0], truncated=False)
+    for opts, note in ((Options(bundle="8x8"), " (traced alone)"), (Options(bundle="1x1"), ""),
+                       (Options(bundle="8x8", accel="kdtree"), ""), (None, "")):  # (bundles go through the BVH)
+        assert dict(summary_rows(Inspection((1, 2), trace, opts=opts)))["effort"] == "42 box tests" + note
+
+
 def test_camera_controls_keep_their_invariants():
     from viewer import camera_control as cc
     v = View((6.0, -9.0, 5.0), (0.0, 0.0, 1.5), (0.0, 0.0, 1.0), 35.0)
