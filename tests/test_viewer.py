@@ -108,6 +108,7 @@ def test_option_widgets_know_which_fields_apply():
     assert not applies(Options(criterion="float"), by_name["fixed_size"])
     assert applies(Options(criterion="adaptive"), by_name["pixel_fraction"])
     assert applies(Options(), by_name["split"])
+    assert applies(Options(), by_name["bundle"]) and not applies(Options(accel="grid"), by_name["bundle"])
     range_lo = {f.name: f for f in fields(ViewSettings)}["range_lo"]
     assert not applies(ViewSettings(), range_lo) and applies(ViewSettings(range="manual"), range_lo)
 

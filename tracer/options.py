@@ -58,7 +58,8 @@ class Options(Record):
     trims: bool = _opt(True, "apply trimming curves (off: show trimmed surfaces whole)")
     bundle: str = _coh("8x8", "ray bundle: columns x rows of pixels whose rays share one subdivision stack "
                        "(Dammertz 2.5.1; through the BVH only). With the length split every bundle reports the "
-                       "single ray's hits bit for bit; 8x8 measures fastest", choices=BUNDLES)
+                       "single ray's hits bit for bit; 8x8 measures fastest", choices=BUNDLES,
+                       when={"accel": "bvh"})
     accel: str = _coh("bvh", "acceleration structure: bounding volume hierarchy, kd-tree, or uniform grid",
                       choices=ACCELS)
     kd_depth: int = _coh(20, "kd-tree: maximum depth", lo=1, hi=40, when={"accel": "kdtree"})
