@@ -177,8 +177,8 @@ def test_coherence_settings_and_the_choice():
     def trace_seconds(opts):
         seen.append(opts.bundle)
         return times[opts.bundle][sum(b == opts.bundle for b in seen) - 1]
-    trial = Trial("adaptive", "f32", 0.5, study.Options(threads=1, criterion="adaptive", bundle="1x1"), ("4x4", "8x8"),
-                  rounds=3)
+    plain = study.Options(threads=1, criterion="adaptive", bundle="1x1")
+    trial = Trial("adaptive", "f32", 0.5, plain, ("4x4", "8x8"), rounds=3)
     out = run_trial(trace_seconds, trial)
     assert seen == ["1x1", "4x4", "8x8"] * 4                     # one warm-up, then the settings take turns
     assert out["seconds"] == {"plain": 3.0, "4x4": 2.0, "8x8": 2.2} and out["chosen"] == "4x4"
