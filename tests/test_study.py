@@ -185,6 +185,20 @@ def test_coherence_settings_and_the_choice():
     assert out["speedup"] == 1.5
 
 
+def test_the_plain_series_and_trials_trace_single_rays_whatever_the_default():
+    """The default bundle is 8x8; the study's plain series and each trial's plain setting are the
+    plain setting (options.PLAIN), and a coherence series only adds its own."""
+    from tracer.options import PLAIN
+    from tracer.study_coherence import trials
+    base = study.Options(bundle="4x4", cache=True)  # as a user's flags could leave it
+    fields = study.sweep_options(1.0)
+    plain = [p.opts for p in study.points(1.0, base, ("f32",))]
+    coherent = [p.opts for p in study.points(1.0, base, ("f32",), {(c, "f32"): "8x8" for c in study.SWEEPS})]
+    assert plain and all(getattr(o, k) == v for o in plain for k, v in PLAIN.items())
+    assert {o.bundle for o in coherent} == {"1x1", "8x8"}
+    assert all(getattr(t.opts, k) == v for t in trials(fields, ("f32",), base) for k, v in PLAIN.items())
+
+
 def test_coherence_series_use_the_chosen_setting(tmp_path):
     out = tmp_path / "s.json"
     assert main(["study", "--scheduler", "none", TEAPOT, "--size", "8x8", "--precisions", "f32", "--tessellations",
