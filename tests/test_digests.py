@@ -50,8 +50,7 @@ DIGEST_ONE = """
 import json, sys
 sys.path.insert(0, "tests")
 import digests as D
-from tracer.options import Options
-print(json.dumps(D.variant_digests(sys.argv[1], Options(criterion="float", precision="f64", bundle="1x1"))))
+print(json.dumps(D.variant_digests(sys.argv[1], dict(D.variants())["float/length/f64"])))
 """
 
 

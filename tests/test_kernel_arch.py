@@ -170,8 +170,9 @@ def test_a_fresh_process_loads_the_kernels_from_the_cache():
 
 def test_a_box_budget_with_bundles_is_refused():
     from tracer.render import trace_rays
-    geom = prepare(_scene("teapot"), "f64")
-    origins, dirs = primary_rays(view_of(_scene("teapot")), 8, 8, "f64")
+    scene = _scene("teapot")
+    geom = prepare(scene, "f64")
+    origins, dirs = primary_rays(view_of(scene), 8, 8, "f64")
     with pytest.raises(ValueError, match="a box budget bounds single rays: bundle 8x8"):
         trace_rays(geom, Options(precision="f64", bundle="8x8"), origins, dirs, 0.0,
                    budget=(1.0, np.zeros((8, 8), np.int32)))

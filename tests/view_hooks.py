@@ -140,10 +140,7 @@ def install(hooks) -> None:
             write_png(viewer.display.read_view(), path)  # drawn this frame, after the tile's upload
             _shot["taken"] = True
             _shot["first_tile"].set()
-        # (not with shot-first-tile, whose shot releases the held render: a kernel loaded from the
-        # cache before its first unit, shown as compiling, took that shot and held the render for good)
-        if path and "shot-first-tile" not in _hooks and not _shot["taken"] and \
-                _frames["compiling"] >= HOLD_FRAMES // 2:
+        if path and "hold-compile" in _hooks and not _shot["taken"] and _frames["compiling"] >= HOLD_FRAMES // 2:
             from viewer.outputs import write_png
             write_png(viewer.display.read_window(fb_size), path)
             _shot["taken"] = True

@@ -30,8 +30,7 @@ from . import accel
 from .bvh import build_bvh
 from .camera import primary_rays, view_of
 from .geometry import prepare
-from .options import BUNDLES, ORDERS, Options
-from .options import PLAIN as PLAIN_SETTING
+from .options import BUNDLES, ORDERS, PLAIN as PLAIN_SETTING, Options
 from .render import fresh_caches, thread_count, trace_rays
 from .stats import frame_stats
 from .surface_cache import mib_for_every_tree

@@ -107,6 +107,11 @@ class Options(Record):
     threads: int = _opt(0, "render threads (0: one per core)", lo=0, hi=256, group="Render")
 
 
+def bundled(opts: Options) -> bool:
+    """Does a render with opts trace its primary rays in bundles? (They go through the BVH only.)"""
+    return opts.bundle != "1x1" and opts.accel == "bvh"
+
+
 def option_fields():
     """The dataclass fields of Options, in declaration order."""
     return dataclasses.fields(Options)

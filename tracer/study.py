@@ -169,7 +169,7 @@ def prepare_study(scene, size, view=None) -> Study:
     origins, dirs = primary_rays(view, width, height, "f32")
     geoms = {p: prepare(scene, p) for p in PRECISIONS}
     pixel_angle = view.pixel_angle(height)
-    frame = trace_rays(geoms["f32"], Options(threads=1).with_(**PLAIN), origins, dirs, pixel_angle)
+    frame = trace_rays(geoms["f32"], Options(threads=1, **PLAIN), origins, dirs, pixel_angle)
     ref = reference_frame(scene, frame, geoms["f64"])
     extent = scene_size(scene)
     position, accepted = polished_truth(scene, geoms["f64"], ref, extent)

@@ -19,6 +19,7 @@ import numba
 import numpy as np
 
 from .jit import load_callees_first
+from .options import bundled
 
 Variant = namedtuple("Variant", "precision rational cubic linear general trims trace driver accel bundle cache")
 
@@ -42,7 +43,7 @@ def variant_for(geom, opts, *, trace: bool = False, driver: str = "closest") -> 
     fast = bool((cubic | linear).any())
     return Variant(geom.precision, bool(rational.any()), fast, fast,
                    bool((integral & ~cubic & ~linear).any()), trimmed, bool(trace), driver, opts.accel,
-                   opts.bundle != "1x1" and not trace and driver == "closest" and opts.accel == "bvh",
+                   bundled(opts) and not trace and driver == "closest",
                    opts.cache and not trace)
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from imgui_bundle import imgui, implot
 
+from tracer.options import bundled
 from tracer.search_steps import EVENT_NAMES
 from tracer.plot import EVENT_COLOURS, OPTIMUM_COLOUR
 
@@ -31,12 +32,6 @@ def _vec(v) -> str:
     return ", ".join(f"{x:.6g}" for x in v)
 
 
-def _bundled(opts) -> bool:
-    """Was the frame traced in bundles? Its pixels' effort then follows the bundle's order of visits,
-    which the inspector's trace of the ray alone can differ from by a few boxes."""
-    return opts is not None and opts.bundle != "1x1" and opts.accel == "bvh"
-
-
 def summary_rows(ins) -> list:
     t = ins.trace
     rows = [("pixel", f"{t.pixel[0]}, {t.pixel[1]}"), ("hit", "yes" if t.hit else "miss")]
@@ -44,7 +39,9 @@ def summary_rows(ins) -> list:
         rows += [("patch", str(t.patch)), ("t", f"{t.t:.9g}"), ("position", _vec(t.position)),
                  ("normal", _vec(t.normal)), ("uv", _vec(t.uv)),
                  ("box size", f"{float(np.sum(t.box_max - t.box_min)):.3g} (L1)")]
-    rows.append(("effort", f"{t.effort} box tests" + (" (traced alone)" if _bundled(ins.opts) else "")))
+    # (a frame traced in bundles counts a pixel's boxes in its bundle's order of visits)
+    alone = " (traced alone)" if ins.opts is not None and bundled(ins.opts) else ""
+    rows.append(("effort", f"{t.effort} box tests{alone}"))
     if ins.error is not None:
         rows.append(("error", f"{ins.error:.3e} (L1 vs float64)"))
     elif ins.reference is not None and ins.reference.hit != t.hit:
