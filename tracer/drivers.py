@@ -51,7 +51,7 @@ def _search(p, lv, trims, ray, hit, q, sl, trace):
             continue
         stop, d_crit, shrank = judge(sl, a, pa, lv, lray, q)
         if stop:
-            found = accept(sl, a, pa, lray, q, trims, HAS_TRIMS)  # noqa: F821
+            found = accept(sl, a, pa, lv, lray, q, trims, HAS_TRIMS)  # noqa: F821
             if TRACING:  # noqa: F821
                 set_event(trace, sl, a, HIT if found else MISS)
             if found:
@@ -128,7 +128,7 @@ def _cached_search(p, lv, trims, ray, hit, q, sl, trace):
             continue
         stop, d_crit, shrank = judge(sl, a, pa, lv, lray, q)
         if stop:
-            if accept(sl, a, pa, lray, q, trims, HAS_TRIMS):  # noqa: F821
+            if accept(sl, a, pa, lv, lray, q, trims, HAS_TRIMS):  # noqa: F821
                 report(hit, sl, a, pa, lv)
                 if STOP_AT_FIRST:  # noqa: F821
                     return effort

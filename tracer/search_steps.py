@@ -17,7 +17,7 @@ from .jit import njit
 
 from .ray import (H_DEPTH, H_DU, H_DV, H_HI, H_LO, H_PATCH, H_TIN, H_TOUT, H_U, H_U0, H_V, H_V0, R_DT, R_O, R_T0,
                   R_TMIN, before_best)
-from .hull import hull_behind, hull_hit, hull_off_plane, seam_plane
+from .hull import hull_behind, hull_hit, hull_off_plane, seam_plane, stop_hull_meets
 from .subpatch import (I_DEPTH, I_LAST, I_STALLED, I_STEP, I_TRIM, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN,
                        M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, REFINE, RECENTRE, grid_l1, open_box, raw_box, recentre,
                        refine, snap_down, snap_up, split, split_direction, ulp, widen, within_ulps)
@@ -227,11 +227,11 @@ def judge_known(sl, a, pa, lv, ray, q, g):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def hull_accepts(sl, a, pa, ray, q):
-    """Does the ray meet the control hull of slot a, which met the criterion? At the depth cap
-    the precision is spent: accept rather than reject (a rejection there would send the search
-    through every branch)."""
-    return sl.mi[a, I_DEPTH] >= q.max_depth or hull_hit(sl, a, pa, ray)
+def hull_accepts(sl, a, pa, lv, ray, q):
+    """Does the ray meet the control hull of slot a, which met the criterion
+    (hull.stop_hull_meets)? At the depth cap the precision is spent: accept rather than reject (a
+    rejection there would send the search through every branch)."""
+    return sl.mi[a, I_DEPTH] >= q.max_depth or stop_hull_meets(sl, a, pa, lv, ray)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -246,10 +246,10 @@ def trim_accepts(sl, a, pa, trims):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def accept(sl, a, pa, ray, q, trims, has_trims):
+def accept(sl, a, pa, lv, ray, q, trims, has_trims):
     """Is slot a, which met the criterion, a hit? Its control hull must meet the ray and its
     parameter centre lie in the kept region."""
-    found = hull_accepts(sl, a, pa, ray, q)
+    found = hull_accepts(sl, a, pa, lv, ray, q)
     if has_trims and found:
         found = trim_accepts(sl, a, pa, trims)
     return found

@@ -193,7 +193,7 @@ def recentre(sl, s, pa):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _restricted_leaf(sl, s, pa, lv, ncoord):
+def restricted_leaf(sl, s, pa, lv, ncoord):
     """The float64 leaf's first ncoord rows restricted to slot s's parameter interval, into
     sl.w64; returns the restriction's relative error bound (bezier.restrict_err)."""
     mf = sl.mf
@@ -217,7 +217,7 @@ def refine(sl, s, pa, lv):
     ctrl64 = lv.ctrl64
     count = pa.count
     start = pa.start
-    rel = _restricted_leaf(sl, s, pa, lv, 3)
+    rel = restricted_leaf(sl, s, pa, lv, 3)
     for c in range(3):
         lo = math.inf
         hi = -math.inf
