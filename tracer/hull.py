@@ -224,16 +224,4 @@ def seam_plane(sl, s, pa, direction, ray):
     end = pa.n * (pa.m + 1) if direction == 0 else pa.m
     x0, y0, z0 = point(buf, s, np.int64(0), rational)
     x1, y1, z1 = point(buf, s, end, rational)
-    ex = x1 - x0
-    ey = y1 - y0
-    ez = z1 - z0
-    dx = ray[R_D]
-    dy = ray[R_D + 1]
-    dz = ray[R_D + 2]
-    wx = dy * ez - dz * ey
-    wy = dz * ex - dx * ez
-    wz = dx * ey - dy * ex
-    length = math.sqrt(wx * wx + wy * wy + wz * wz)
-    if not length > 0.0:
-        return 0.0, 0.0, 0.0
-    return wx / length, wy / length, wz / length
+    return _edge_normal(ray[R_D], ray[R_D + 1], ray[R_D + 2], x1 - x0, y1 - y0, z1 - z0)
