@@ -28,7 +28,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from .bundle_steps import (ONE, W_LEN, ZERO, add_count, ahead_in, judge_detail, lane_limit, lowest_bit, open_root,
+from .bundle_steps import (ONE, W_LEN, ZERO, add_count, ahead_in, bit, judge_detail, lane_limit, lowest_bit, open_root,
                            push_halves)
 from .drivers import WIDE_BITS, wide_leaves, wide_slots
 from .frustum import F_LEN
@@ -51,12 +51,18 @@ MAX_RAYS = 64
 # stack: node (D,) int32, node_mask (D,) uint64, node_row (D,) int32, the row of node_tin (D, K).
 # Slots are unsigned, as tile_scratch's order: a signed slot index costs every array access a
 # negative-index fix-up (measured: float 8x8 8 % slower, adaptive 3 %).
+# waiting (K,) uint32: the working slot a ray left alone waits in (_bundle_search).
 # row and node_row are permutations: moving an entry's intervals to another position moves its
 # row index, not K floats. bounds (frustum.F_LEN,): the bounds of the bundle's rays (the walk's).
 # The walk's rays in lanes (lanes.py: (L_LEN, K') with K' = K rounded up to whole groups of
 # WIDTH, as node_tin's rows are) and its counters there, walk_counts (W_LEN, K') int64.
 BundleRays = namedtuple("BundleRays", "rays lrays hits counts lengths slot mask row tin tout free node node_mask "
-                        "node_row node_tin bounds lanes walk_counts")
+                        "node_row node_tin bounds lanes walk_counts waiting")
+# A ray left alone in a sub-patch waits there until the bundle pops an entry that holds it, or
+# until this many wait; then the waiting rays go on alone, in one call (_rays_alone). Each waiting
+# ray holds a working slot (tile_kernel.working_slots counts them).
+WAITING = 16
+
 
 def _solo_search(sl, start, pa, lv, trims, q, br, r, base, free, nfree):
     """The rest of working slot start's subtree for ray r alone, the bundle's last ray in it: the
@@ -109,6 +115,22 @@ def _solo_search(sl, start, pa, lv, trims, q, br, r, base, free, nfree):
     return nfree
 
 
+def _rays_alone(p, lv, trims, q, sl, br, waiting, base, nfree):
+    """The rays of mask `waiting` each on alone from the slot it waits in (br.waiting; _solo_search
+    above stack position `base`), one after another. Returns the free slots' count. Compiled
+    apart from the bundle search, so that the machine code of the steps that take most of a
+    float frame does not move with every change to the shared ones (coherence-history, stop 37)."""
+    pa = patch_info(lv, p, WIDE_BITS if WIDE else q.bits, HAS_RATIONAL, HAS_CUBIC, HAS_LINEAR)  # noqa: F821
+    free = br.free
+    m = waiting
+    while m != ZERO:
+        r = lowest_bit(m)
+        m &= m - ONE
+        nfree = solo(sl, br.waiting[r], pa, lv, trims, q, br, r, base, free, nfree)  # noqa: F821
+        br.lanes[L_HIT, r] = lane_limit(br.hits[r], pa.p)
+    return nfree
+
+
 def _bundle_search(p, lv, trims, q, sl, br, active):
     """The bundle patch search template (specialised by make_bundle_search): the single ray's
     steps (drivers._search, _cached_search with CACHED) for the rays of a mask, on a stack of
@@ -150,7 +172,15 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
     br.slot[0] = s
     br.mask[0] = open_root(sl, s, pa, br, br.row[0], active)
     sp = 1 if br.mask[0] != ZERO else 0
-    while sp > 0:
+    waiting = ZERO  # the rays left alone, each in its slot (br.waiting): a ray's own search is
+    nwaiting = 0    # all it waits for, so they go on before the next entry that holds one of them
+    while sp > 0 or waiting != ZERO:
+        if SOLO:  # noqa: F821
+            if waiting != ZERO and (sp == 0 or nwaiting == WAITING or (br.mask[sp - 1] & waiting) != ZERO):
+                nfree = rays_alone(p, lv, trims, q, sl, br, waiting, sp, nfree)  # noqa: F821
+                waiting = ZERO
+                nwaiting = 0
+                continue
         sp -= 1
         a = br.slot[sp]
         cached = a >= first
@@ -162,12 +192,13 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
                 nfree += 1
             continue
         if SOLO:  # noqa: F821
-            if not cached and (live & (live - ONE)) == ZERO:  # one ray left: on alone (_solo_search)
+            if not cached and (live & (live - ONE)) == ZERO:  # one ray left: on alone, soon (_rays_alone)
                 r = lowest_bit(live)
                 sl.mf[a, M_TIN] = br.tin[row, r]
                 sl.mf[a, M_TOUT] = br.tout[row, r]
-                nfree = solo(sl, a, pa, lv, trims, q, br, r, sp, free, nfree)  # noqa: F821
-                br.lanes[L_HIT, r] = lane_limit(br.hits[r], pa.p)
+                br.waiting[r] = a
+                waiting |= bit(r)
+                nwaiting += 1
                 continue
         # The criterion is judged once for the box where it reads no ray; under adaptive, for
         # each ray (its threshold at its entry t), eight at a time.
@@ -276,25 +307,27 @@ def make_bundle_search(variant, alone: bool = True):
     the bundle br (BundleRays); each ray's hit shrinks as it finds closer hit boxes. Integral
     patches in the working precision, rational ones in float64 slots (as drivers.make_search),
     from the thread's surface-tree cache if the variant has it. alone: a ray left alone in a
-    sub-patch goes on with the single ray's steps (_solo_search: a second copy of the steps to
-    compile, about 15 s cold; it pays for primary rays under `float`, not for shadow rays)."""
+    sub-patch goes on with the single ray's steps (_rays_alone, _solo_search: a second copy of
+    the steps to compile; it pays for primary rays under `float`, not for shadow rays)."""
     flags = dict(HAS_TRIMS=variant.trims, CACHED=variant.cache, SOLO=alone)
     kernel = njit(cache=True, nogil=True, _nrt=False)
 
     def solo(general):
-        if not alone:
-            return None
         return njit(cache=True, nogil=True, _nrt=False, inline='always')(
             specialise(_solo_search, HAS_TRIMS=variant.trims, HAS_GENERAL=general))
+
+    def searcher(**kinds):
+        alone_kernel = None
+        if alone:
+            alone_kernel = kernel(specialise(_rays_alone, solo=solo(kinds["HAS_GENERAL"]), **kinds, **flags))
+        return kernel(specialise(_bundle_search, rays_alone=alone_kernel, **kinds, **flags))
     narrow = None
     if variant.cubic or variant.linear or variant.general:
-        narrow = kernel(specialise(_bundle_search, WIDE=False, HAS_RATIONAL=False, HAS_CUBIC=variant.cubic,
-                                   HAS_LINEAR=variant.linear, HAS_GENERAL=variant.general,
-                                   solo=solo(variant.general), **flags))
+        narrow = searcher(WIDE=False, HAS_RATIONAL=False, HAS_CUBIC=variant.cubic, HAS_LINEAR=variant.linear,
+                          HAS_GENERAL=variant.general)
     search = narrow
     if variant.rational:
-        wide = kernel(specialise(_bundle_search, WIDE=True, HAS_RATIONAL=True, HAS_CUBIC=False, HAS_LINEAR=False,
-                                 HAS_GENERAL=True, solo=solo(True), **flags))
+        wide = searcher(WIDE=True, HAS_RATIONAL=True, HAS_CUBIC=False, HAS_LINEAR=False, HAS_GENERAL=True)
         dispatch = _rational_only if narrow is None else _by_kind
         search = njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(dispatch, wide=wide,
                                                                                       narrow=narrow))
@@ -312,4 +345,4 @@ def bundle_rays(count: int, slots: int, stack: int) -> BundleRays:
                       np.zeros((slots, padded(count))), np.zeros(slots, np.uint32), np.zeros(stack, np.int32),
                       np.zeros(stack, np.uint64), np.arange(stack, dtype=np.int32),
                       np.zeros((stack, padded(count))), np.zeros(F_LEN), np.zeros((L_LEN, padded(count))),
-                      np.zeros((W_LEN, padded(count)), np.int64))
+                      np.zeros((W_LEN, padded(count)), np.int64), np.zeros(count, np.uint32))

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from .aggregate import WALKS, walk_scratch
-from .bundle import bundle_rays, make_bundle_search
+from .bundle import WAITING, bundle_rays, make_bundle_search
 from .bundle_steps import ONE, ZERO
 from .bundle_walk import make_bvh_bundle_walk
 from .drivers import make_search
@@ -29,8 +29,9 @@ NO_CACHE = no_cache()
 
 
 def working_slots(inputs) -> int:
-    """Slots a search works in: a stack as deep as the subdivision, and two for making halves."""
-    return inputs.query.max_depth + 4
+    """Slots a search works in: a stack as deep as the subdivision, two for making halves, and
+    one for each ray of a bundle that may wait to go on alone (bundle.WAITING)."""
+    return inputs.query.max_depth + 4 + WAITING
 
 
 def tile_scratch(inputs, thread_cache=None) -> TileScratch:
