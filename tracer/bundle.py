@@ -170,7 +170,7 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
         root_at(sl, s, pa, lv)
     add_count(br.counts, active, C_EFFORT, 1)
     br.slot[0] = s
-    br.mask[0] = open_root(sl, s, pa, br, br.row[0], active)
+    br.mask[0] = open_root(sl, s, pa, br, br.row[0], active, SIDED)  # noqa: F821
     sp = 1 if br.mask[0] != ZERO else 0
     waiting = ZERO  # the rays left alone, each in its slot (br.waiting): a ray's own search is
     nwaiting = 0    # all it waits for, so they go on before the next entry that holds one of them
@@ -262,7 +262,7 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
                 b = np.uint32(kid + 1)
         # One inlined copy of the halving and of push_halves for cached and computed halves (a
         # copy in each branch: float 8x8 with the cache 3 % slower, adaptive 5 %).
-        sp, dropped, dropped2 = push_halves(sl, a, b, sp, pa, br, go, direction)
+        sp, dropped, dropped2 = push_halves(sl, a, b, sp, pa, br, go, direction, SIDED)  # noqa: F821
         if kid < 0:  # (cached halves stay in the cache)
             for c in (dropped, dropped2):
                 if c >= 0:
@@ -302,14 +302,15 @@ def _closest_rays(p, lv, trims, q, sl, br, active):
         br.lanes[L_HIT, r] = np.nextafter(br.hits[r, H_TIN], np.inf)
 
 
-def make_bundle_search(variant, alone: bool = True):
+def make_bundle_search(variant, alone: bool = True, sided: bool = True):
     """search(p, lv, trims, q, sl, br, active): patch p searched for the rays of mask `active` of
     the bundle br (BundleRays); each ray's hit shrinks as it finds closer hit boxes. Integral
     patches in the working precision, rational ones in float64 slots (as drivers.make_search),
     from the thread's surface-tree cache if the variant has it. alone: a ray left alone in a
     sub-patch goes on with the single ray's steps (_rays_alone, _solo_search: a second copy of
-    the steps to compile; it pays for primary rays under `float`, not for shadow rays)."""
-    flags = dict(HAS_TRIMS=variant.trims, CACHED=variant.cache, SOLO=alone)
+    the steps to compile; it pays for primary rays under `float`, not for shadow rays). sided:
+    the rays may have side planes (ray.set_side: secondary rays; False for primary rays)."""
+    flags = dict(HAS_TRIMS=variant.trims, CACHED=variant.cache, SOLO=alone, SIDED=sided)
     kernel = njit(cache=True, nogil=True, _nrt=False)
 
     def solo(general):

@@ -85,20 +85,22 @@ def _off_side(sl, s, pa, br, row, g, alive, met):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _slot_rays(sl, s, pa, br, row, g, bits, start, start_row, stop, stop_row):
+def _slot_rays(sl, s, pa, br, row, g, bits, start, start_row, stop, stop_row, sided):
     """The rays of group g in bits (the group's low bits) against slot s's box, eight at a time,
     each within [start[start_row], stop[stop_row]] (the rays' t_min and inf at a root:
     subpatch.open_box): their intervals into tin[row], tout[row]. Returns (the rays that meet it
     before their own closest hit's limit, those that meet it at all), less those behind a side
-    plane (_off_side)."""
+    plane (_off_side, where the rays have side planes: `sided`)."""
     lo0, lo1, lo2, hi0, hi1, hi2 = _corners(sl, s)
     both = slab_lanes(br.lanes, L_PO, g, lo0, lo1, lo2, hi0, hi1, hi2, br.tin, br.tout, row, start, start_row, stop,
                       stop_row)
+    if not sided:
+        return both & bits, (both >> np.uint64(WIDTH)) & bits
     return _off_side(sl, s, pa, br, row, g, both & bits, (both >> np.uint64(WIDTH)) & bits)
 
 
 @njit(cache=True, nogil=True, inline='always')
-def open_root(sl, s, pa, br, row, m):
+def open_root(sl, s, pa, br, row, m, sided):
     """Slab-test root slot s's box against the rays of m from their t_min (intervals into
     tin[row], tout[row]); the rays that meet it before their own closest hit (and are not behind
     it: _slot_rays)."""
@@ -106,18 +108,19 @@ def open_root(sl, s, pa, br, row, m):
     for g in range(br.lanes.shape[1] // WIDTH):
         bits = group_bits(m, g)
         if bits != ZERO:
-            kept, _ = _slot_rays(sl, s, pa, br, row, g, bits, br.lanes, L_TMIN, br.lanes, L_FAR)
+            kept, _ = _slot_rays(sl, s, pa, br, row, g, bits, br.lanes, L_TMIN, br.lanes, L_FAR, sided)
             alive |= kept << np.uint64(WIDTH * g)
     return alive
 
 
 @njit(cache=True, nogil=True, inline='always')
-def open_pair(sl, a, b, pa, br, row_a, row_b, m):
+def open_pair(sl, a, b, pa, br, row_a, row_b, m, sided):
     """The halves a and b against the rays of m, group by group, within their parent's intervals,
     which row_a holds until their own overwrite it (lanes.slab_pair_lanes loads first): (the rays
     of each half, the rays that meet both boxes). (The bundle's bounds, frustum.py, rarely reject a
     half: counted on the teapot, 12 % of the halves tested by four rays or more, saving less than
-    they cost.)"""
+    they cost.) sided: the rays may have side planes (secondary rays; primary rays have none,
+    and then the boxes holding a ray's origin are not looked for)."""
     alive_a = ZERO
     alive_b = ZERO
     met_both = ZERO
@@ -130,9 +133,11 @@ def open_pair(sl, a, b, pa, br, row_a, row_b, m):
             b0, b1, b2, b3, b4, b5 = _corners(sl, b)
             both = slab_pair_lanes(br.lanes, L_PO, g, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, br.tin, br.tout,
                                    row_a, row_b, br.tin, row_a, br.tout, row_a)
-            kept_a, met_a = _off_side(sl, a, pa, br, row_a, g, both & bits, (both >> np.uint64(WIDTH)) & bits)
-            kept_b, met_b = _off_side(sl, b, pa, br, row_b, g, (both >> np.uint64(2 * WIDTH)) & bits,
-                                      (both >> np.uint64(3 * WIDTH)) & bits)
+            kept_a, met_a = both & bits, (both >> np.uint64(WIDTH)) & bits
+            kept_b, met_b = (both >> np.uint64(2 * WIDTH)) & bits, (both >> np.uint64(3 * WIDTH)) & bits
+            if sided:
+                kept_a, met_a = _off_side(sl, a, pa, br, row_a, g, kept_a, met_a)
+                kept_b, met_b = _off_side(sl, b, pa, br, row_b, g, kept_b, met_b)
             alive_a |= kept_a << shift
             alive_b |= kept_b << shift
             met_both |= (met_a & met_b) << shift
@@ -179,13 +184,13 @@ def lane_limit(hit, p):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def push_halves(sl, a, b, sp, pa, br, go, direction):
+def push_halves(sl, a, b, sp, pa, br, go, direction, sided):
     """The halves a and b (b past the seam) at stack positions sp and sp + 1 for the rays of `go`:
     each ray's intervals, the single ray's hull tests where it meets both boxes (search_steps.near_and_far),
     the bundle's nearer half on top. Returns the new stack height and the halves no ray keeps (-1 for none)."""
     row_a = br.row[sp]
     row_b = br.row[sp + 1]
-    keep_a, keep_b, met_both = open_pair(sl, a, b, pa, br, row_a, row_b, go)
+    keep_a, keep_b, met_both = open_pair(sl, a, b, pa, br, row_a, row_b, go, sided)
     both = met_both & (keep_a | keep_b)
     while both != ZERO:  # as sort_halves: the far half across the seam plane and the ray's planes first
         r = lowest_bit(both)

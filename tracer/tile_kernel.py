@@ -207,7 +207,7 @@ def make_tile_kernel(variant):
     """
     # The pixel loop allocates nothing: no reference counts (see drivers).
     if variant.bundle:
-        walk = make_bvh_bundle_walk(make_bundle_search(variant))
+        walk = make_bvh_bundle_walk(make_bundle_search(variant, sided=False))  # primary rays: no side planes
         return njit(cache=True, nogil=True, _nrt=False)(specialise(_render_bundles, walk=walk))
     return njit(cache=True, nogil=True, _nrt=False)(specialise(_render_tile, walk=_walk_of(variant)))
 
