@@ -13,7 +13,7 @@ import numpy as np
 from .jit import njit
 from .ray import R_D, R_N1, R_N2, R_O, R_SIDE
 from .simd import dist_range_cubic
-from .subpatch import M_E, M_MAG, M_OX, point, restricted_leaf
+from .subpatch import M_E, M_MAG, M_OX, leaf_magnitude, point, restricted_leaf
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
@@ -155,20 +155,9 @@ def _beside_float64(sl, s, pa, lv, ray, a0, a1, a2, b0, b1, b2):
     rel = restricted_leaf(sl, s, pa, lv, 3)
     w64 = sl.w64
     count = pa.count
-    err0 = 0.0
-    err1 = 0.0
-    err2 = 0.0
-    for c in range(3):
-        big = 0.0
-        for k in range(count):
-            big = max(big, abs(lv.ctrl64[c, pa.start + k]))
-        err = big * rel + lv.eps64[pa.p, c]
-        if c == 0:
-            err0 = err
-        elif c == 1:
-            err1 = err
-        else:
-            err2 = err
+    err0 = leaf_magnitude(lv, pa, 0) * rel + lv.eps64[pa.p, 0]
+    err1 = leaf_magnitude(lv, pa, 1) * rel + lv.eps64[pa.p, 1]
+    err2 = leaf_magnitude(lv, pa, 2) * rel + lv.eps64[pa.p, 2]
     for j in range(2):
         n0, n1, n2 = (a0, a1, a2) if j == 0 else (b0, b1, b2)
         if n0 == 0.0 and n1 == 0.0 and n2 == 0.0:

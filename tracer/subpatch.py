@@ -204,6 +204,16 @@ def restricted_leaf(sl, s, pa, lv, ncoord):
     return restrict_err(pa.m, pa.n)
 
 
+@njit(cache=True, nogil=True, inline='always')
+def leaf_magnitude(lv, pa, c):
+    """The largest |float64 control point| of leaf pa.p along axis c: times restricted_leaf's
+    relative bound, what a restriction of the leaf may be off by there."""
+    big = 0.0
+    for k in range(pa.count):
+        big = max(big, abs(lv.ctrl64[c, pa.start + k]))
+    return big
+
+
 @njit(cache=True, nogil=True, _nrt=False)  # rare: a call, not inlined (see _COLD)
 def refine(sl, s, pa, lv):
     """Re-derive slot s's (integral) control points from the float64 leaf over its parameter
@@ -214,18 +224,15 @@ def refine(sl, s, pa, lv):
     buf = sl.buf
     mf = sl.mf
     w64 = sl.w64
-    ctrl64 = lv.ctrl64
     count = pa.count
-    start = pa.start
     rel = restricted_leaf(sl, s, pa, lv, 3)
     for c in range(3):
         lo = math.inf
         hi = -math.inf
-        big = 0.0
         for k in range(count):
             lo = min(lo, w64[c, k])
             hi = max(hi, w64[c, k])
-            big = max(big, abs(ctrl64[c, start + k]))
+        big = leaf_magnitude(lv, pa, c)
         offset = _to_working(0.5 * (lo + hi), pa.bits)
         err = 0.0
         for k in range(count):
