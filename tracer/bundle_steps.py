@@ -44,9 +44,12 @@ def bit(r):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def group_bits(m, g):
-    """The rays of mask m in lanes group g, as the group's low bits."""
-    return (m >> np.uint64(WIDTH * g)) & GROUP
+def take_group(rest):
+    """The lowest lanes group holding a ray of mask `rest`: (its index g, its shift WIDTH * g, its
+    rays as the group's low bits, rest less them). Loops over a mask's groups visit only these."""
+    g = lowest_bit(rest) // WIDTH
+    shift = np.uint64(WIDTH * g)
+    return g, shift, (rest >> shift) & GROUP, rest & ~(GROUP << shift)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -105,11 +108,11 @@ def open_root(sl, s, pa, br, row, m, sided):
     tin[row], tout[row]); the rays that meet it before their own closest hit (and are not behind
     it: _slot_rays)."""
     alive = ZERO
-    for g in range(br.lanes.shape[1] // WIDTH):
-        bits = group_bits(m, g)
-        if bits != ZERO:
-            kept, _ = _slot_rays(sl, s, pa, br, row, g, bits, br.lanes, L_TMIN, br.lanes, L_FAR, sided)
-            alive |= kept << np.uint64(WIDTH * g)
+    rest = m
+    while rest != ZERO:
+        g, shift, bits, rest = take_group(rest)
+        kept, _ = _slot_rays(sl, s, pa, br, row, g, bits, br.lanes, L_TMIN, br.lanes, L_FAR, sided)
+        alive |= kept << shift
     return alive
 
 
@@ -124,23 +127,22 @@ def open_pair(sl, a, b, pa, br, row_a, row_b, m, sided):
     alive_a = ZERO
     alive_b = ZERO
     met_both = ZERO
-    for g in range(br.lanes.shape[1] // WIDTH):
-        bits = group_bits(m, g)
-        if bits != ZERO:
-            shift = np.uint64(WIDTH * g)
-            # (the corners loaded in the loop: kept live across it they cost float 8x8 2-6 %)
-            a0, a1, a2, a3, a4, a5 = _corners(sl, a)
-            b0, b1, b2, b3, b4, b5 = _corners(sl, b)
-            both = slab_pair_lanes(br.lanes, L_PO, g, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, br.tin, br.tout,
-                                   row_a, row_b, br.tin, row_a, br.tout, row_a)
-            kept_a, met_a = both & bits, (both >> np.uint64(WIDTH)) & bits
-            kept_b, met_b = (both >> np.uint64(2 * WIDTH)) & bits, (both >> np.uint64(3 * WIDTH)) & bits
-            if sided:
-                kept_a, met_a = _off_side(sl, a, pa, br, row_a, g, kept_a, met_a)
-                kept_b, met_b = _off_side(sl, b, pa, br, row_b, g, kept_b, met_b)
-            alive_a |= kept_a << shift
-            alive_b |= kept_b << shift
-            met_both |= (met_a & met_b) << shift
+    rest = m
+    while rest != ZERO:
+        g, shift, bits, rest = take_group(rest)
+        # (the corners loaded in the loop: kept live across it they cost float 8x8 2-6 %)
+        a0, a1, a2, a3, a4, a5 = _corners(sl, a)
+        b0, b1, b2, b3, b4, b5 = _corners(sl, b)
+        both = slab_pair_lanes(br.lanes, L_PO, g, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, br.tin, br.tout,
+                               row_a, row_b, br.tin, row_a, br.tout, row_a)
+        kept_a, met_a = both & bits, (both >> np.uint64(WIDTH)) & bits
+        kept_b, met_b = (both >> np.uint64(2 * WIDTH)) & bits, (both >> np.uint64(3 * WIDTH)) & bits
+        if sided:
+            kept_a, met_a = _off_side(sl, a, pa, br, row_a, g, kept_a, met_a)
+            kept_b, met_b = _off_side(sl, b, pa, br, row_b, g, kept_b, met_b)
+        alive_a |= kept_a << shift
+        alive_b |= kept_b << shift
+        met_both |= (met_a & met_b) << shift
     return alive_a, alive_b, met_both
 
 
@@ -148,10 +150,10 @@ def open_pair(sl, a, b, pa, br, row_a, row_b, m, sided):
 def nearest_in(tin, br, row, m):
     """nearest for an interval row of tin (the sub-patch stack's or the walk's), from the lanes."""
     t = np.inf
-    for g in range(br.lanes.shape[1] // WIDTH):
-        bits = group_bits(m, g)
-        if bits != ZERO:
-            t = min(t, nearest_lanes(tin, row, g, bits))
+    rest = m
+    while rest != ZERO:
+        g, _, bits, rest = take_group(rest)
+        t = min(t, nearest_lanes(tin, row, g, bits))
     return t
 
 
@@ -161,13 +163,13 @@ def ahead_in(tin, br, row, m, count_nodes):
     closest hit: the others drop out of it (from the lanes). count_nodes: each live ray counts a
     node (the walk's)."""
     live = ZERO
-    for g in range(br.lanes.shape[1] // WIDTH):
-        bits = group_bits(m, g)
-        if bits != ZERO:
-            kept = ahead_lanes(tin, row, br.lanes, g, bits)
-            if count_nodes:
-                count_lanes(br.walk_counts, W_NODES, g, kept, 1)
-            live |= kept << np.uint64(WIDTH * g)
+    rest = m
+    while rest != ZERO:
+        g, shift, bits, rest = take_group(rest)
+        kept = ahead_lanes(tin, row, br.lanes, g, bits)
+        if count_nodes:
+            count_lanes(br.walk_counts, W_NODES, g, kept, 1)
+        live |= kept << shift
     return live
 
 
@@ -239,10 +241,10 @@ def _within_detail(br, row, m, size):
     """The rays of m whose threshold of detail at their entry t into the box of `row` is at least
     `size` (lanes.within_detail_lanes)."""
     within = ZERO
-    for g in range(br.lanes.shape[1] // WIDTH):
-        bits = group_bits(m, g)
-        if bits != ZERO:
-            within |= within_detail_lanes(br.tin, row, br.lanes, g, bits, size) << np.uint64(WIDTH * g)
+    rest = m
+    while rest != ZERO:
+        g, shift, bits, rest = take_group(rest)
+        within |= within_detail_lanes(br.tin, row, br.lanes, g, bits, size) << shift
     return within
 
 

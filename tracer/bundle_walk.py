@@ -9,8 +9,8 @@ import math
 import numpy as np
 
 from .aggregate import BvhNodes  # noqa: F401 (the record the walk reads)
-from .bundle_steps import (ONE, W_BOX_TESTS, W_NODES, W_PATCHES, W_SURFACES, ZERO, ahead_in, group_bits,
-                           lowest_bit, nearest_in)
+from .bundle_steps import (ONE, W_BOX_TESTS, W_NODES, W_PATCHES, W_SURFACES, ZERO, ahead_in, lowest_bit,
+                           nearest_in, take_group)
 from .frustum import MIN_RAYS, at_least, bound_rays, misses_all
 from .jit import njit, specialise
 from .lanes import L_D, L_DT, L_FAR, L_HIT, L_INV, L_O, L_T0, L_TMIN, WIDTH, count_lanes, slab_lanes, slab_pair_lanes
@@ -65,10 +65,10 @@ def _store_counts(br, m):
 @njit(cache=True, nogil=True, inline='always')
 def _count_walk(br, m, row, n):
     """walk_counts[row, r] += n for every ray r of m."""
-    for g in range(br.lanes.shape[1] // WIDTH):
-        bits = group_bits(m, g)
-        if bits != ZERO:
-            count_lanes(br.walk_counts, row, g, bits, n)
+    rest = m
+    while rest != ZERO:
+        g, _, bits, rest = take_group(rest)
+        count_lanes(br.walk_counts, row, g, bits, n)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -77,12 +77,12 @@ def _node_rays(node_box, node, br, row, m):
     meet it before their own closest hit."""
     alive = ZERO
     lo0, lo1, lo2, hi0, hi1, hi2 = _node_corners(node_box, node)
-    for g in range(br.lanes.shape[1] // WIDTH):
-        bits = group_bits(m, g)
-        if bits != ZERO:
-            met = slab_lanes(br.lanes, L_O, g, lo0, lo1, lo2, hi0, hi1, hi2, br.node_tin, None, row, br.lanes,
-                             L_TMIN, br.lanes, L_FAR) & bits
-            alive |= met << np.uint64(WIDTH * g)
+    rest = m
+    while rest != ZERO:
+        g, shift, bits, rest = take_group(rest)
+        met = slab_lanes(br.lanes, L_O, g, lo0, lo1, lo2, hi0, hi1, hi2, br.node_tin, None, row, br.lanes,
+                         L_TMIN, br.lanes, L_FAR) & bits
+        alive |= met << shift
     return alive
 
 
@@ -102,14 +102,12 @@ def _children_rays(node_box, left, right, br, row_l, row_r, m, surfaces):
     alive_l = ZERO
     alive_r = ZERO
     lanes = br.lanes
-    for g in range(lanes.shape[1] // WIDTH):
-        bits = group_bits(m, g)
-        if bits == ZERO:
-            continue
+    rest = m
+    while rest != ZERO:
+        g, shift, bits, rest = take_group(rest)
         count_lanes(br.walk_counts, W_BOX_TESTS, g, bits, 2)
         if surfaces:
             count_lanes(br.walk_counts, W_SURFACES, g, bits, surfaces)
-        shift = np.uint64(WIDTH * g)
         if test_l and test_r:
             both = slab_pair_lanes(lanes, L_O, g, l0, l1, l2, l3, l4, l5, r0, r1, r2, r3, r4, r5, br.node_tin, None,
                                    row_l, row_r, lanes, L_TMIN, lanes, L_FAR)
