@@ -72,9 +72,13 @@ def _corners(sl, s):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _off_side(sl, s, pa, br, row, g, alive, met):
+def _off_side(sl, s, pa, br, row, g, alive, met, sided):
     """(alive, met) of group g in slot s less the rays wholly behind the side plane of a ray whose
-    origin the box holds, as search_steps.open_child drops it for the single ray."""
+    origin the box holds, as search_steps.open_child drops it for the single ray. sided: the rays
+    may have side planes (secondary rays); primary rays have none, and then the boxes holding a
+    ray's origin are not looked for."""
+    if not sided:
+        return alive, met
     start = at_start_lanes(br.tin, row, br.lanes, g, met)
     shift = np.uint64(WIDTH * g)
     while start != ZERO:  # boxes that hold a ray's origin: the single ray's side-plane test
@@ -93,13 +97,11 @@ def _slot_rays(sl, s, pa, br, row, g, bits, start, start_row, stop, stop_row, si
     each within [start[start_row], stop[stop_row]] (the rays' t_min and inf at a root:
     subpatch.open_box): their intervals into tin[row], tout[row]. Returns (the rays that meet it
     before their own closest hit's limit, those that meet it at all), less those behind a side
-    plane (_off_side, where the rays have side planes: `sided`)."""
+    plane (_off_side)."""
     lo0, lo1, lo2, hi0, hi1, hi2 = _corners(sl, s)
     both = slab_lanes(br.lanes, L_PO, g, lo0, lo1, lo2, hi0, hi1, hi2, br.tin, br.tout, row, start, start_row, stop,
                       stop_row)
-    if not sided:
-        return both & bits, (both >> np.uint64(WIDTH)) & bits
-    return _off_side(sl, s, pa, br, row, g, both & bits, (both >> np.uint64(WIDTH)) & bits)
+    return _off_side(sl, s, pa, br, row, g, both & bits, (both >> np.uint64(WIDTH)) & bits, sided)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -122,8 +124,7 @@ def open_pair(sl, a, b, pa, br, row_a, row_b, m, sided):
     which row_a holds until their own overwrite it (lanes.slab_pair_lanes loads first): (the rays
     of each half, the rays that meet both boxes). (The bundle's bounds, frustum.py, rarely reject a
     half: counted on the teapot, 12 % of the halves tested by four rays or more, saving less than
-    they cost.) sided: the rays may have side planes (secondary rays; primary rays have none,
-    and then the boxes holding a ray's origin are not looked for)."""
+    they cost.) sided: as _off_side."""
     alive_a = ZERO
     alive_b = ZERO
     met_both = ZERO
@@ -135,11 +136,9 @@ def open_pair(sl, a, b, pa, br, row_a, row_b, m, sided):
         b0, b1, b2, b3, b4, b5 = _corners(sl, b)
         both = slab_pair_lanes(br.lanes, L_PO, g, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, br.tin, br.tout,
                                row_a, row_b, br.tin, row_a, br.tout, row_a)
-        kept_a, met_a = both & bits, (both >> np.uint64(WIDTH)) & bits
-        kept_b, met_b = (both >> np.uint64(2 * WIDTH)) & bits, (both >> np.uint64(3 * WIDTH)) & bits
-        if sided:
-            kept_a, met_a = _off_side(sl, a, pa, br, row_a, g, kept_a, met_a)
-            kept_b, met_b = _off_side(sl, b, pa, br, row_b, g, kept_b, met_b)
+        kept_a, met_a = _off_side(sl, a, pa, br, row_a, g, both & bits, (both >> np.uint64(WIDTH)) & bits, sided)
+        kept_b, met_b = _off_side(sl, b, pa, br, row_b, g, (both >> np.uint64(2 * WIDTH)) & bits,
+                                  (both >> np.uint64(3 * WIDTH)) & bits, sided)
         alive_a |= kept_a << shift
         alive_b |= kept_b << shift
         met_both |= (met_a & met_b) << shift
