@@ -149,15 +149,15 @@ def _beside(buf, mf, s, count, m, n, rational, cubic, sub_scale, ray, reach):
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # rare: a call
-def _beside_float64(sl, s, pa, lv, ray, a0, a1, a2, b0, b1, b2):
+def _beside_float64(w64, mf, s, pa, ctrl64, eps64, ray, a0, a1, a2, b0, b1, b2):
     """Is the sub-patch of slot s, re-derived from the float64 leaf over its parameter interval,
-    wholly on one side of one of _beside's planes (unit normals a and b)?"""
-    rel = restricted_leaf(sl, s, pa, lv, 3)
-    w64 = sl.w64
+    wholly on one side of one of _beside's planes (unit normals a and b)? Arrays, not records
+    (subpatch._CALLED)."""
+    rel = restricted_leaf(w64, mf, s, pa, ctrl64, 3)
     count = pa.count
-    err0 = leaf_magnitude(lv, pa, 0) * rel + lv.eps64[pa.p, 0]
-    err1 = leaf_magnitude(lv, pa, 1) * rel + lv.eps64[pa.p, 1]
-    err2 = leaf_magnitude(lv, pa, 2) * rel + lv.eps64[pa.p, 2]
+    err0 = leaf_magnitude(ctrl64, pa, 0) * rel + eps64[pa.p, 0]
+    err1 = leaf_magnitude(ctrl64, pa, 1) * rel + eps64[pa.p, 1]
+    err2 = leaf_magnitude(ctrl64, pa, 2) * rel + eps64[pa.p, 2]
     for j in range(2):
         n0, n1, n2 = (a0, a1, a2) if j == 0 else (b0, b1, b2)
         if n0 == 0.0 and n1 == 0.0 and n2 == 0.0:
@@ -198,7 +198,7 @@ def stop_hull_meets(sl, s, pa, lv, ray):
     verdict, a0, a1, a2, b0, b1, b2 = _beside(sl.buf, sl.mf, s, pa.count, np.int64(pa.m), np.int64(pa.n),
                                               pa.rational, pa.cubic, pa.sub_scale, ray, reach)
     if verdict == BESIDE_BAND and pa.cumulative:
-        return not _beside_float64(sl, s, pa, lv, ray, a0, a1, a2, b0, b1, b2)
+        return not _beside_float64(sl.w64, sl.mf, s, pa, lv.ctrl64, lv.eps64, ray, a0, a1, a2, b0, b1, b2)
     return verdict != BESIDE_OFF
 
 

@@ -133,8 +133,8 @@ def root_at(sl, s, pa, lv):
     mi[s, I_STALLED] = 0
     mi[s, I_LAST] = -1
     mi[s, I_TRIM] = 0
-    raw_box(sl, s, pa.count, pa.rational)
-    widen(sl, s, pa.sub_scale)
+    raw_box(sl.buf, sl.box, s, pa.count, pa.rational)
+    widen(sl.box, mf, s, pa.sub_scale)
     frame_mag = 0.0
     for k in range(6):
         frame_mag = max(frame_mag, abs(sl.box[s, k]))
@@ -295,9 +295,9 @@ def tighten(sl, a, pa, lv):
     mf = sl.mf
     ext = max(box[a, 3] - box[a, 0], box[a, 4] - box[a, 1], box[a, 5] - box[a, 2])
     if pa.cumulative and (mf[a, M_E] + mf[a, M_E + 1] + mf[a, M_E + 2]) * REFINE > ext:
-        refine(sl, a, pa, lv)
+        refine(sl.buf, box, mf, sl.w64, a, pa, lv.ctrl64, lv.eps64)
     elif ext * RECENTRE < mf[a, M_MAG]:
-        recentre(sl, a, pa)
+        recentre(sl.buf, box, mf, a, pa)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -316,7 +316,7 @@ def halve(sl, a, b, pa, ray, q, d_crit, shrank, has_general):
     depth = mi[a, I_DEPTH]
     mi[b, I_TRIM] = mi[a, I_TRIM]
     for child in (a, b):
-        widen(sl, child, pa.sub_scale)
+        widen(sl.box, mf, child, pa.sub_scale)
         mf[child, M_DPAR] = d_crit
         mi[child, I_DEPTH] = depth + 1
         mi[child, I_STALLED] = stalled

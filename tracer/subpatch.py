@@ -49,11 +49,15 @@ SUB_ERR_BITS = 8    # float64: a split's rounding stays below 2^-(bits - 8) of t
 # Calls or inlines. numba inlines an inline='always' helper into its own IR once per call site,
 # and its type inference, SSA and lowering then cost more than linearly in the kernel's size; a
 # plain call is typed and lowered once, and LLVM still inlines it where that pays. So leaf
-# operations used at several call sites are calls (_CALLED: point, hull.hull_range, raw_box, widen, snap_*,
-# ulp), and so are the rare re-centring and re-deriving (_COLD); operations given a variant flag as an argument stay inlined, so that the
-# flag stays a constant their branches are pruned by (split, tighten, open_child). The hull and
-# slab tests stay inlined too (LLVM leaves them as calls, which cost the search 8 %), but for the
-# hull's loop over the points (hull_range: inlined at every hull test it lengthened cold compiles).
+# operations used at several call sites are calls (_CALLED: point, hull.hull_range, raw_box,
+# snap_*, ulp), and so are the rare re-centring and re-deriving (_COLD); operations given a
+# variant flag as an argument stay inlined, so that the flag stays a constant their branches are
+# pruned by (split, tighten, open_child). The hull and slab tests stay inlined too (LLVM leaves
+# them as calls, which cost the search 8 %), and so does widen (a call taking two arrays, LLVM
+# left it a call: 13 % of a float frame), but for the hull's loop over the points (hull_range:
+# inlined at every hull test it lengthened cold compiles). A call takes the arrays it needs,
+# never a record: numba passes a record's every array as some ten words, most of them on the
+# stack (Slots with its cache is some 170 words: a fifth of recentre's time went to pushing them).
 
 
 def max_depth_for(precision_bits: int) -> int:
@@ -96,14 +100,13 @@ def _to_working(q, bits):
     return q if bits >= 53 else np.float64(np.float32(q))
 
 
-@njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
-def widen(sl, s, sub_scale):
-    """Widen the raw control box of slot s by its error bound (M_E); sets M_MAG, M_W and M_D.
+@njit(cache=True, nogil=True, inline='always')  # (see _CALLED)
+def widen(box, mf, s, sub_scale):
+    """Widen the raw control box of slot s (box: Slots.box, mf: Slots.mf) by its error bound
+    (M_E); sets M_MAG, M_W and M_D.
 
     sub_scale: 0 where M_E carries the subdivision's rounding (float32, integral patches), else
     2^-(bits - SUB_ERR_BITS), a per-level bound relative to the magnitude."""
-    box = sl.box
-    mf = sl.mf
     mag = 0.0
     for k in range(6):
         mag = max(mag, abs(box[s, k]))
@@ -155,22 +158,21 @@ def within_ulps(sl, s, ulps, bits, lv, p):
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
-def raw_box(sl, s, count, is_rational):
+def raw_box(buf, box, s, count, is_rational):
+    """Slot s's control box (buf, box: Slots.buf, Slots.box) before widening."""
     if is_rational:
-        control_box_rational(sl.buf, s, count, sl.box)
+        control_box_rational(buf, s, count, box)
     else:
-        control_box(sl.buf, s, count, sl.box)
+        control_box(buf, s, count, box)
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # rare: a call, not inlined (see _COLD)
-def recentre(sl, s, pa):
+def recentre(buf, box, mf, s, pa):
     """Shift slot s's control points so its box is centred near 0 (the shift rounded to the
     working precision: for points close to the shift the subtraction is exact, Sterbenz; the
     others round by at most half an ulp of the result, added to the slot's error bound in float32,
-    covered by the per-level bound in float64, where rational slots are searched)."""
-    buf = sl.buf
-    box = sl.box
-    mf = sl.mf
+    covered by the per-level bound in float64, where rational slots are searched). Arrays, not
+    records (see _CALLED)."""
     count = pa.count
     for c in range(3):
         shift = _to_working(0.5 * (box[s, c] + box[s, 3 + c]), pa.bits)
@@ -185,54 +187,52 @@ def recentre(sl, s, pa):
             for k in range(count):
                 buf[s, c, k] = float(buf[s, c, k]) - shift
         mf[s, M_OX + c] += shift
-    raw_box(sl, s, count, pa.rational)
+    raw_box(buf, box, s, count, pa.rational)
     if not pa.rational:
         for c in range(3):
             mf[s, M_E + c] += pa.round_unit * max(abs(box[s, c]), abs(box[s, 3 + c]))
-    widen(sl, s, pa.sub_scale)
+    widen(box, mf, s, pa.sub_scale)
 
 
 @njit(cache=True, nogil=True, inline='always')
-def restricted_leaf(sl, s, pa, lv, ncoord):
-    """The float64 leaf's first ncoord rows restricted to slot s's parameter interval, into
-    sl.w64; returns the restriction's relative error bound (bezier.restrict_err)."""
-    mf = sl.mf
+def restricted_leaf(w64, mf, s, pa, ctrl64, ncoord):
+    """The float64 leaf's (ctrl64: Leaves.ctrl64) first ncoord rows restricted to slot s's
+    parameter interval (mf: Slots.mf), into w64 (Slots.w64); returns the restriction's relative
+    error bound (bezier.restrict_err)."""
     for c in range(ncoord):
         for k in range(pa.count):
-            sl.w64[c, k] = lv.ctrl64[c, pa.start + k]
-    restrict(sl.w64, pa.m, pa.n, ncoord, mf[s, M_U0], mf[s, M_U1], mf[s, M_V0], mf[s, M_V1])
+            w64[c, k] = ctrl64[c, pa.start + k]
+    restrict(w64, pa.m, pa.n, ncoord, mf[s, M_U0], mf[s, M_U1], mf[s, M_V0], mf[s, M_V1])
     return restrict_err(pa.m, pa.n)
 
 
 @njit(cache=True, nogil=True, inline='always')
-def leaf_magnitude(lv, pa, c):
-    """The largest |float64 control point| of leaf pa.p along axis c: times restricted_leaf's
-    relative bound, what a restriction of the leaf may be off by there."""
+def leaf_magnitude(ctrl64, pa, c):
+    """The largest |float64 control point| of leaf pa.p along axis c (ctrl64: Leaves.ctrl64):
+    times restricted_leaf's relative bound, what a restriction of the leaf may be off by there."""
     big = 0.0
     for k in range(pa.count):
-        big = max(big, abs(lv.ctrl64[c, pa.start + k]))
+        big = max(big, abs(ctrl64[c, pa.start + k]))
     return big
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # rare: a call, not inlined (see _COLD)
-def refine(sl, s, pa, lv):
+def refine(buf, box, mf, w64, s, pa, ctrl64, eps64):
     """Re-derive slot s's (integral) control points from the float64 leaf over its parameter
     interval, stored relative to a new offset at the box centre: their error bound drops from the
     leaf's rounding to the sub-patch's own, so the error band no longer outgrows the box.
 
-    Without it, grazing rays meet the band of the float32 leaf data ahead of the true crossing."""
-    buf = sl.buf
-    mf = sl.mf
-    w64 = sl.w64
+    Without it, grazing rays meet the band of the float32 leaf data ahead of the true crossing.
+    Arrays, not records (see _CALLED)."""
     count = pa.count
-    rel = restricted_leaf(sl, s, pa, lv, 3)
+    rel = restricted_leaf(w64, mf, s, pa, ctrl64, 3)
     for c in range(3):
         lo = math.inf
         hi = -math.inf
         for k in range(count):
             lo = min(lo, w64[c, k])
             hi = max(hi, w64[c, k])
-        big = leaf_magnitude(lv, pa, c)
+        big = leaf_magnitude(ctrl64, pa, c)
         offset = _to_working(0.5 * (lo + hi), pa.bits)
         err = 0.0
         for k in range(count):
@@ -240,9 +240,9 @@ def refine(sl, s, pa, lv):
             buf[s, c, k] = local
             err = max(err, abs(np.float64(buf[s, c, k]) - local) + abs(local) * 2.0 ** -52)
         mf[s, M_OX + c] = offset
-        mf[s, M_E + c] = err + big * rel + lv.eps64[pa.p, c]
-    raw_box(sl, s, count, pa.rational)  # False: integral
-    widen(sl, s, 0.0)  # the bound carries every rounding (float32, integral)
+        mf[s, M_E + c] = err + big * rel + eps64[pa.p, c]
+    raw_box(buf, box, s, count, pa.rational)  # False: integral
+    widen(box, mf, s, 0.0)  # the bound carries every rounding (float32, integral)
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # a call (see _CALLED)
@@ -324,8 +324,8 @@ def split(sl, a, b, pa, direction, has_general):
             split_u(buf, a, b, pa.m, pa.n, ncoord)
         else:
             split_v(buf, a, b, pa.m, pa.n, ncoord)
-        raw_box(sl, a, count, pa.rational)
-        raw_box(sl, b, count, pa.rational)
+        raw_box(buf, box, a, count, pa.rational)
+        raw_box(buf, box, b, count, pa.rational)
     for c in range(4):
         mf[b, M_U0 + c] = mf[a, M_U0 + c]
     if direction == 0:

@@ -168,17 +168,18 @@ def take_pair(cache, keep):
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def copy_slot(sl, src, dst, ncoord, count):
-    """Slot src's points, box, bounds and tree place into slot dst."""
+def copy_slot(buf, box, mf, mi, src, dst, ncoord, count):
+    """Slot src's points, box, bounds and tree place into slot dst (Slots' arrays, not the
+    record: subpatch._CALLED)."""
     for c in range(ncoord):
         for k in range(count):
-            sl.buf[dst, c, k] = sl.buf[src, c, k]
-    for k in range(sl.box.shape[1]):
-        sl.box[dst, k] = sl.box[src, k]
-    for k in range(sl.mf.shape[1]):
-        sl.mf[dst, k] = sl.mf[src, k]
-    for k in range(sl.mi.shape[1]):
-        sl.mi[dst, k] = sl.mi[src, k]
+            buf[dst, c, k] = buf[src, c, k]
+    for k in range(box.shape[1]):
+        box[dst, k] = box[src, k]
+    for k in range(mf.shape[1]):
+        mf[dst, k] = mf[src, k]
+    for k in range(mi.shape[1]):
+        mi[dst, k] = mi[src, k]
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -186,8 +187,8 @@ def keep_halves(sl, cache, node, a, b, kid, ncoord, count, free, nfree):
     """The halves just computed in working slots a and b become cached node's children, the pair
     kid, kid + 1; a and b go back to the free working slots (free[:nfree]). Returns their count."""
     first = cache.state[S_FIRST]
-    copy_slot(sl, a, kid, ncoord, count)
-    copy_slot(sl, b, kid + 1, ncoord, count)
+    copy_slot(sl.buf, sl.box, sl.mf, sl.mi, a, kid, ncoord, count)
+    copy_slot(sl.buf, sl.box, sl.mf, sl.mi, b, kid + 1, ncoord, count)
     cache.child[node - first] = kid
     cache.child[kid - first] = -1
     cache.child[kid + 1 - first] = -1
