@@ -250,7 +250,7 @@ def _bundle_search(p, lv, trims, q, sl, br, active):
             if cached:  # below the cached levels (or the pool is full): on in working slots
                 nfree -= 1
                 w = free[nfree]
-                copy_slot(sl.buf, sl.box, sl.mf, sl.mi, a, w, ncoord, pa.count)
+                copy_slot(sl, a, w, ncoord, pa.count)
                 a = w
             tighten(sl, a, pa, lv)
             nfree -= 1

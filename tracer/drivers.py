@@ -75,7 +75,7 @@ def _halve_working(sl, a, cached, pa, lv, lray, q, d_crit, shrank, free, nfree, 
     if cached:
         nfree -= 1
         w = free[nfree]
-        copy_slot(sl.buf, sl.box, sl.mf, sl.mi, a, w, ncoord, pa.count)
+        copy_slot(sl, a, w, ncoord, pa.count)
         a = w
     tighten(sl, a, pa, lv)
     nfree -= 1

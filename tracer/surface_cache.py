@@ -167,10 +167,15 @@ def take_pair(cache, keep):
     return cache.state[S_FIRST] + 2 * cache.pairs_free[cache.state[S_FREE_PAIRS]]
 
 
+@njit(cache=True, nogil=True, inline='always')
+def copy_slot(sl, src, dst, ncoord, count):
+    """Slot src's points, box, bounds and tree place into slot dst."""
+    _copy_slot(sl.buf, sl.box, sl.mf, sl.mi, src, dst, ncoord, count)
+
+
 @njit(cache=True, nogil=True, _nrt=False)
-def copy_slot(buf, box, mf, mi, src, dst, ncoord, count):
-    """Slot src's points, box, bounds and tree place into slot dst (Slots' arrays, not the
-    record: subpatch._CALLED)."""
+def _copy_slot(buf, box, mf, mi, src, dst, ncoord, count):
+    """copy_slot's call, given Slots' arrays, not the record (subpatch._CALLED)."""
     for c in range(ncoord):
         for k in range(count):
             buf[dst, c, k] = buf[src, c, k]
@@ -187,8 +192,8 @@ def keep_halves(sl, cache, node, a, b, kid, ncoord, count, free, nfree):
     """The halves just computed in working slots a and b become cached node's children, the pair
     kid, kid + 1; a and b go back to the free working slots (free[:nfree]). Returns their count."""
     first = cache.state[S_FIRST]
-    copy_slot(sl.buf, sl.box, sl.mf, sl.mi, a, kid, ncoord, count)
-    copy_slot(sl.buf, sl.box, sl.mf, sl.mi, b, kid + 1, ncoord, count)
+    copy_slot(sl, a, kid, ncoord, count)
+    copy_slot(sl, b, kid + 1, ncoord, count)
     cache.child[node - first] = kid
     cache.child[kid - first] = -1
     cache.child[kid + 1 - first] = -1
