@@ -28,6 +28,7 @@ from collections import namedtuple
 
 import numpy as np
 
+from .bundle_alone import _rays_alone_lanes, alone_lanes
 from .bundle_steps import (ONE, W_LEN, ZERO, add_count, ahead_in, bit, judge_detail, lane_limit, lowest_bit, open_root,
                            push_halves)
 from .drivers import WIDE_BITS, wide_leaves, wide_slots
@@ -51,13 +52,14 @@ MAX_RAYS = 64
 # stack: node (D,) int32, node_mask (D,) uint64, node_row (D,) int32, the row of node_tin (D, K).
 # Slots are unsigned, as tile_scratch's order: a signed slot index costs every array access a
 # negative-index fix-up (measured: float 8x8 8 % slower, adaptive 3 %).
-# waiting (K,) uint32: the working slot a ray left alone waits in (_bundle_search).
+# waiting (K,) uint32: the working slot a ray left alone waits in (_bundle_search); alone: the lane
+# slots rays alone go on in, eight at a time (bundle_alone.AloneLanes).
 # row and node_row are permutations: moving an entry's intervals to another position moves its
 # row index, not K floats. bounds (frustum.F_LEN,): the bounds of the bundle's rays (the walk's).
 # The walk's rays in lanes (lanes.py: (L_LEN, K') with K' = K rounded up to whole groups of
 # WIDTH, as node_tin's rows are) and its counters there, walk_counts (W_LEN, K') int64.
 BundleRays = namedtuple("BundleRays", "rays lrays hits counts lengths slot mask row tin tout free node node_mask "
-                        "node_row node_tin bounds lanes walk_counts waiting")
+                        "node_row node_tin bounds lanes walk_counts waiting alone")
 # A ray left alone in a sub-patch waits there until the bundle pops an entry that holds it, or
 # until this many wait; then the waiting rays go on alone, in one call (_rays_alone). Each waiting
 # ray holds a working slot (tile_kernel.working_slots counts them).
@@ -321,6 +323,8 @@ def make_bundle_search(variant, alone: bool = True, sided: bool = True):
         alone_kernel = None
         if alone:
             alone_kernel = kernel(specialise(_rays_alone, solo=solo(kinds["HAS_GENERAL"]), **kinds, **flags))
+            if kinds["HAS_CUBIC"] and not kinds["WIDE"] and not variant.trims:  # bicubics' rays eight at a time
+                alone_kernel = kernel(specialise(_rays_alone_lanes, rays_alone=alone_kernel, **kinds, **flags))
         return kernel(specialise(_bundle_search, rays_alone=alone_kernel, **kinds, **flags))
     narrow = None
     if variant.cubic or variant.linear or variant.general:
@@ -335,9 +339,9 @@ def make_bundle_search(variant, alone: bool = True, sided: bool = True):
     return njit(cache=True, nogil=True, _nrt=False, inline='always')(specialise(_closest_rays, search=search))
 
 
-def bundle_rays(count: int, slots: int, stack: int) -> BundleRays:
+def bundle_rays(count: int, slots: int, stack: int, dtype=np.float32) -> BundleRays:
     """A bundle's records for up to `count` rays, `slots` working sub-patch slots (the search's stack
-    is no deeper) and a walk `stack` deep."""
+    is no deeper) in `dtype` and a walk `stack` deep."""
     from .ray import HIT_LEN
     from .records import COUNTER_LEN
     return BundleRays(np.zeros((count, RAY_LEN)), np.zeros((count, RAY_LEN)), np.zeros((count, HIT_LEN)),
@@ -346,4 +350,4 @@ def bundle_rays(count: int, slots: int, stack: int) -> BundleRays:
                       np.zeros((slots, padded(count))), np.zeros(slots, np.uint32), np.zeros(stack, np.int32),
                       np.zeros(stack, np.uint64), np.arange(stack, dtype=np.int32),
                       np.zeros((stack, padded(count))), np.zeros(F_LEN), np.zeros((L_LEN, padded(count))),
-                      np.zeros((W_LEN, padded(count)), np.int64), np.zeros(count, np.uint32))
+                      np.zeros((W_LEN, padded(count)), np.int64), np.zeros(count, np.uint32), alone_lanes(slots, dtype))

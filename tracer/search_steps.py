@@ -291,13 +291,25 @@ def tighten(sl, a, pa, lv):
     """Re-derive slot a from float64 when its error band nears its box (float32 slots: integral
     patches), else re-centre it when the box is much smaller than its coordinates (midpoints
     then round relative to the box)."""
+    how = tightening(sl, a, pa)
+    if how == REFINING:
+        refine(sl.buf, sl.box, sl.mf, sl.w64, a, pa, lv.ctrl64, lv.eps64)
+    elif how == RECENTRING:
+        recentre(sl.buf, sl.box, sl.mf, a, pa)
+
+
+REFINING, RECENTRING = 1, 2
+
+
+@njit(cache=True, nogil=True, inline='always')
+def tightening(sl, a, pa):
+    """What tighten does to slot a: REFINING, RECENTRING or 0 (nothing)."""
     box = sl.box
     mf = sl.mf
     ext = max(box[a, 3] - box[a, 0], box[a, 4] - box[a, 1], box[a, 5] - box[a, 2])
     if pa.cumulative and (mf[a, M_E] + mf[a, M_E + 1] + mf[a, M_E + 2]) * REFINE > ext:
-        refine(sl.buf, box, mf, sl.w64, a, pa, lv.ctrl64, lv.eps64)
-    elif ext * RECENTRE < mf[a, M_MAG]:
-        recentre(sl.buf, box, mf, a, pa)
+        return REFINING
+    return RECENTRING if ext * RECENTRE < mf[a, M_MAG] else 0
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -305,13 +317,27 @@ def halve(sl, a, b, pa, ray, q, d_crit, shrank, has_general):
     """Halve slot a (tightened first) into a and b, each with its widened box and its place in
     the tree: the longer direction or the ray's ('cross') while the box shrinks, else the other
     direction than last time. Returns the direction (0 u, 1 v)."""
+    direction = halving_direction(sl, a, pa, ray, q, shrank)
+    split(sl, a, b, pa, direction, has_general)
+    finish_halves(sl, a, b, pa, d_crit, shrank, direction)
+    return direction
+
+
+@njit(cache=True, nogil=True, inline='always')
+def halving_direction(sl, a, pa, ray, q, shrank):
+    """halve's direction for slot a: 0 u, 1 v."""
+    if shrank:
+        return split_direction(sl, a, pa, ray, q.split_mode)
+    last = sl.mi[a, I_LAST]
+    return 1 - last if last >= 0 else 0
+
+
+@njit(cache=True, nogil=True, inline='always')
+def finish_halves(sl, a, b, pa, d_crit, shrank, direction):
+    """halve's last step, once slots a and b hold the halves: their widened boxes and places in
+    the tree."""
     mf = sl.mf
     mi = sl.mi
-    if shrank:
-        direction = split_direction(sl, a, pa, ray, q.split_mode)
-    else:
-        direction = 1 - mi[a, I_LAST] if mi[a, I_LAST] >= 0 else 0
-    split(sl, a, b, pa, direction, has_general)
     stalled = 0 if shrank else 1
     depth = mi[a, I_DEPTH]
     mi[b, I_TRIM] = mi[a, I_TRIM]
@@ -321,7 +347,6 @@ def halve(sl, a, b, pa, ray, q, d_crit, shrank, has_general):
         mi[child, I_DEPTH] = depth + 1
         mi[child, I_STALLED] = stalled
         mi[child, I_LAST] = direction
-    return direction
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -346,13 +371,7 @@ def near_and_far(sl, a, b, pa, ray, direction, alive_a, alive_b, met_both):
 
     The hull tests run where the ray meets both boxes, whatever the best hit prunes: which half
     they drop is a matter of the ray and the boxes, the same in every order of visits."""
-    mf = sl.mf
-    # Selects, not branches: which half survives is as good as random.
-    near_a = mf[a, M_TIN] <= mf[b, M_TIN]
-    far = b if near_a else a
-    near = a if near_a else b
-    alive_far = alive_b if near_a else alive_a
-    alive_near = alive_a if near_a else alive_b
+    far, near, alive_far, alive_near = order_halves(sl, a, b, alive_a, alive_b)
     dropped = -1
     if met_both and (alive_far or alive_near):
         # The ray meets both boxes: the control hulls (across two planes through the ray)
@@ -369,6 +388,20 @@ def near_and_far(sl, a, b, pa, ray, direction, alive_a, alive_b, met_both):
                 dropped = near
             alive_near = 0
     return far, near, alive_far, alive_near, dropped
+
+
+@njit(cache=True, nogil=True, inline='always')
+def order_halves(sl, a, b, alive_a, alive_b):
+    """near_and_far's first step: (far, near, alive_far, alive_near), a the near half where both
+    are entered at the same t."""
+    mf = sl.mf
+    # Selects, not branches: which half survives is as good as random.
+    near_a = mf[a, M_TIN] <= mf[b, M_TIN]
+    far = b if near_a else a
+    near = a if near_a else b
+    alive_far = alive_b if near_a else alive_a
+    alive_near = alive_a if near_a else alive_b
+    return far, near, alive_far, alive_near
 
 
 @njit(cache=True, nogil=True, inline='always')

@@ -302,12 +302,8 @@ def split(sl, a, b, pa, direction, has_general):
     largest coordinate, and the errors of earlier levels stay in the points."""
     buf = sl.buf
     box = sl.box
-    mf = sl.mf
     count = pa.count
-    levels = (pa.m if direction == 0 else pa.n) * pa.round_unit  # 0 in float64 (see sub_scale)
-    for c in range(3):
-        mf[b, M_E + c] = mf[a, M_E + c] + levels * max(abs(box[a, c]), abs(box[a, 3 + c]))
-        mf[a, M_E + c] = mf[b, M_E + c]
+    split_bounds(sl, a, b, pa, direction)
     if pa.cubic:
         if direction == 0:
             split_u_cubic(buf, a, b, box)
@@ -326,6 +322,25 @@ def split(sl, a, b, pa, direction, has_general):
             split_v(buf, a, b, pa.m, pa.n, ncoord)
         raw_box(buf, box, a, count, pa.rational)
         raw_box(buf, box, b, count, pa.rational)
+    split_intervals(sl, a, b, direction)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def split_bounds(sl, a, b, pa, direction):
+    """split's first step, before the points are halved: both halves' error bounds, the parent's
+    (slot a's, its box still the parent's) plus a rounding per de Casteljau level."""
+    box = sl.box
+    mf = sl.mf
+    levels = (pa.m if direction == 0 else pa.n) * pa.round_unit  # 0 in float64 (see sub_scale)
+    for c in range(3):
+        mf[b, M_E + c] = mf[a, M_E + c] + levels * max(abs(box[a, c]), abs(box[a, 3 + c]))
+        mf[a, M_E + c] = mf[b, M_E + c]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def split_intervals(sl, a, b, direction):
+    """split's last step: the halves' parameter intervals, slot b's offset and grid step."""
+    mf = sl.mf
     for c in range(4):
         mf[b, M_U0 + c] = mf[a, M_U0 + c]
     if direction == 0:

@@ -13,6 +13,7 @@ import numpy as np
 
 from .aggregate import WALKS, walk_scratch
 from .bundle import WAITING, bundle_rays, make_bundle_search
+from .lanes_split import LANES
 from .bundle_steps import ONE, ZERO
 from .bundle_walk import make_bvh_bundle_walk
 from .drivers import make_search
@@ -29,9 +30,10 @@ NO_CACHE = no_cache()
 
 
 def working_slots(inputs) -> int:
-    """Slots a search works in: a stack as deep as the subdivision, two for making halves, and
-    one for each ray of a bundle that may wait to go on alone (bundle.WAITING)."""
-    return inputs.query.max_depth + 4 + WAITING
+    """Slots a search works in: a stack as deep as the subdivision, two for making halves, one
+    for each ray of a bundle that may wait to go on alone (bundle.WAITING), and a stack for each
+    lane the rays alone go on in (bundle_alone)."""
+    return inputs.query.max_depth + 4 + WAITING + LANES * (inputs.query.max_depth + 2)
 
 
 def tile_scratch(inputs, thread_cache=None) -> TileScratch:
@@ -58,7 +60,7 @@ def tile_scratch(inputs, thread_cache=None) -> TileScratch:
                np.zeros(RAY_LEN), np.zeros((4, max_points)),
                np.zeros((MAX_SPLIT_DEPTH + 4, trim_points, 3)), np.zeros((MAX_SPLIT_DEPTH + 4, 6)), buf64, cache)
     return TileScratch(sl, walk_scratch(inputs.scene[2], stack_nodes), ray_scratch(max_points),
-                       bundle_rays(bundle, slots, stack_nodes))
+                       bundle_rays(bundle, slots, stack_nodes, buf.dtype))
 
 
 @njit(cache=True, nogil=True, inline='always')

@@ -1,0 +1,226 @@
+"""A bundle's rays left alone, eight at a time (bundle._rays_alone, for integral bicubics).
+
+Each ray left alone in a sub-patch goes on with the single ray's steps (bundle._solo_search) on
+its own stack: below the levels the bundle shares, where a float ray makes most of its halvings,
+a ray's search is independent of the others'. Here eight of them run side by side, one in each
+lane: a lane's current sub-patch is a column of the lane slots (AloneLanes), the halving of all
+eight is one pass of vector code (lanes_split), and the other steps are the single ray's own
+functions, run lane by lane on the lane slots seen as slots (lane_slots: column j is slot j; 0..7
+the lanes' current sub-patches, 8..15 their high halves). The steps that read control points
+through the slots' vector code (hull tests, tightening, a pushed half) work on a copy in a
+working slot. Each lane makes its ray's steps in _solo_search's order, on its own stack (the far
+half on it, the near one on at once), so every box, hit and counter is the same.
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+
+from .bundle_steps import ONE, ZERO, bit, lane_limit, lowest_bit
+from .hull import hull_behind
+from .jit import njit
+from .lanes import L_HIT
+from .lanes_split import (COLUMNS, LANE_RAY, LANES, S_DCRIT, S_SHRANK, S_START, S_STOP, STEP_LEN, halve_lanes,
+                          keep_high_lanes)
+from .ray import R_D, R_INV, R_O, R_REACH, R_TMIN, before_best
+from .records import C_EFFORT, Slots
+from .search_steps import (ahead, hull_accepts, judge_known, near_and_far, order_halves, report,
+                           tighten, tightening)
+from .subpatch import I_DEPTH, I_LAST, I_STALLED, I_TRIM, MF_LEN, MI_LEN, M_TIN, M_TOUT, M_U0, M_V0, patch_info
+
+# The lane slots: points (3, 16, COLUMNS) in the slots' dtype, box (6, COLUMNS), mf (MF_LEN,
+# COLUMNS), mi (MI_LEN, COLUMNS) int32 (lanes_split: column j < LANES lane j's current sub-patch,
+# LANES + j its high half after a halving), and the same seen as slots (points_s (COLUMNS, 3, 16),
+# box_s (COLUMNS, 6), ...: slot j is column j), made in numpy (numba's transpose with axes needs its
+# runtime). dirs (LANES,) int32: each lane's halving direction. ray (LANES,) int64: the bundle ray
+# in each lane (-1 none), lray (LANE_RAY, LANES) its origin, direction and inverse direction in the
+# patch's frame; current (LANES,) int64: 1 where the lane holds a sub-patch to go on with. stack
+# (LANES, S) uint32: each lane's stack of working slots (far halves it pushed), top (LANES,) its
+# height. step (STEP_LEN, LANES): a halving's inputs.
+AloneLanes = namedtuple("AloneLanes", "points box mf mi points_s box_s mf_s mi_s dirs ray lray current stack top "
+                                      "step")
+
+
+def alone_lanes(slots: int, dtype) -> AloneLanes:
+    """Lane slots for eight rays alone in `dtype` slots, each stack up to `slots` deep."""
+    points, box = np.zeros((3, 16, COLUMNS), dtype), np.zeros((6, COLUMNS))
+    mf, mi = np.zeros((MF_LEN, COLUMNS)), np.zeros((MI_LEN, COLUMNS), np.int32)
+    return AloneLanes(points, box, mf, mi, points.transpose(2, 0, 1), box.T, mf.T, mi.T, np.zeros(LANES, np.int32),
+                      np.full(LANES, -1), np.zeros((LANE_RAY, LANES)), np.zeros(LANES, np.int64),
+                      np.zeros((LANES, slots), np.uint32), np.zeros(LANES, np.int64), np.zeros((STEP_LEN, LANES)))
+
+
+@njit(cache=True, nogil=True, inline='always')
+def lane_slots(al, sl):
+    """The lane slots as a records.Slots whose slot j is column j; the rest of sl as it is."""
+    return Slots(al.points_s, al.box_s, al.mf_s, al.mi_s, sl.order, sl.lray, sl.w64, sl.trim_h, sl.trim_m,
+                 sl.buf64, sl.cache)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def to_slot(al, column, sl, s):
+    """Column `column` of the lane slots into working slot s."""
+    for c in range(3):
+        for k in range(16):
+            sl.buf[s, c, k] = al.points[c, k, column]
+    for k in range(6):
+        sl.box[s, k] = al.box[k, column]
+    for k in range(MF_LEN):
+        sl.mf[s, k] = al.mf[k, column]
+    for k in range(MI_LEN):
+        sl.mi[s, k] = al.mi[k, column]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def from_slot(al, column, sl, s):
+    """Working slot s into column `column` of the lane slots."""
+    for c in range(3):
+        for k in range(16):
+            al.points[c, k, column] = sl.buf[s, c, k]
+    for k in range(6):
+        al.box[k, column] = sl.box[s, k]
+    for k in range(MF_LEN):
+        al.mf[k, column] = sl.mf[s, k]
+    for k in range(MI_LEN):
+        al.mi[k, column] = sl.mi[s, k]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _take_ray(al, lane, lr):
+    for k in range(3):
+        al.lray[R_O + k, lane] = lr[R_O + k]
+        al.lray[R_D + k, lane] = lr[R_D + k]
+        al.lray[R_INV + k, lane] = lr[R_INV + k]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _verdict(al, column, pa, sl, spare, ray, hit, met):
+    """search_steps.open_slot's verdict on a column halve_lanes slab-tested (met: 1 where the ray
+    meets its box): (alive, met), 1 or 0."""
+    ok = met != 0
+    t_in = al.mf[M_TIN, column]
+    alive = ok and al.mf[M_TOUT, column] >= ray[R_REACH] and before_best(t_in, al.mf[M_U0, column],
+                                                                          al.mf[M_V0, column], hit, pa.p)
+    if ok and t_in <= ray[R_TMIN]:  # a box holding the origin (rare): the hull test, on a copy
+        to_slot(al, column, sl, spare)
+        if hull_behind(sl, spare, pa, ray):
+            alive = ok = False
+    return 1 if alive else 0, 1 if ok else 0
+
+
+def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
+    """bundle._rays_alone for a bicubic's rays eight at a time (see the module's doc); other
+    patches' rays one after another (rays_alone)."""
+    pa = patch_info(lv, p, q.bits, False, HAS_CUBIC, HAS_LINEAR)  # noqa: F821
+    if not pa.cubic:
+        return rays_alone(p, lv, trims, q, sl, br, waiting, base, nfree)  # noqa: F821
+    al = br.alone
+    ls = lane_slots(al, sl)
+    free = br.free
+    queue = waiting
+    for lane in range(LANES):
+        al.ray[lane] = -1
+        al.current[lane] = 0
+        al.top[lane] = 0
+    while True:
+        ready = ZERO
+        for lane in range(LANES):  # every lane to its next halving, or out of rays
+            while True:
+                r = al.ray[lane]
+                if r < 0:
+                    if queue == ZERO:
+                        break
+                    r = lowest_bit(queue)
+                    queue &= queue - ONE
+                    al.ray[lane] = r
+                    _take_ray(al, lane, br.lrays[r])
+                    start = br.waiting[r]
+                    from_slot(al, lane, sl, start)
+                    free[nfree] = start
+                    nfree += 1
+                    al.current[lane] = 1
+                elif al.current[lane] == 0:
+                    if al.top[lane] == 0:  # the ray's search is over
+                        br.lanes[L_HIT, r] = lane_limit(br.hits[r], pa.p)
+                        al.ray[lane] = -1
+                        continue
+                    al.top[lane] -= 1
+                    s = al.stack[lane, al.top[lane]]
+                    from_slot(al, lane, sl, s)
+                    free[nfree] = s
+                    nfree += 1
+                    al.current[lane] = 1
+                hit = br.hits[r]
+                lr = br.lrays[r]
+                if not ahead(ls, lane, pa, hit):
+                    al.current[lane] = 0
+                    continue
+                stop, d_crit, shrank, _ = judge_known(ls, lane, pa, lv, lr, q, -1.0)
+                if stop:
+                    spare = free[nfree - 1]
+                    to_slot(al, lane, sl, spare)
+                    if hull_accepts(sl, spare, pa, lv, lr, q):
+                        report(hit, sl, spare, pa, lv)
+                    al.current[lane] = 0
+                    continue
+                br.counts[r, C_EFFORT] += 2
+                al.step[S_START, lane] = al.mf[M_TIN, lane]
+                al.step[S_STOP, lane] = al.mf[M_TOUT, lane]
+                if tightening(ls, lane, pa) != 0:  # (rare) on a copy in a working slot
+                    spare = free[nfree - 1]
+                    to_slot(al, lane, sl, spare)
+                    tighten(sl, spare, pa, lv)
+                    from_slot(al, lane, sl, spare)
+                al.step[S_DCRIT, lane] = d_crit
+                al.step[S_SHRANK, lane] = 1.0 if shrank else 0.0
+                ready |= bit(lane)
+                break
+        if ready == ZERO:
+            return nfree
+        met = halve_lanes(al.points, al.dirs, al.box, al.mf, al.mi, al.lray, al.step, pa.m * pa.round_unit,
+                          pa.sub_scale, q.split_mode)
+        take = ZERO
+        m = ready
+        while m != ZERO:
+            lane = lowest_bit(m)
+            m &= m - ONE
+            r = al.ray[lane]
+            hit = br.hits[r]
+            lr = br.lrays[r]
+            a = lane
+            b = LANES + lane
+            direction = al.dirs[lane]
+            stalled = 0 if al.step[S_SHRANK, lane] != 0.0 else 1  # (search_steps.finish_halves)
+            depth = al.mi[I_DEPTH, a] + 1
+            al.mi[I_TRIM, b] = al.mi[I_TRIM, a]
+            for column in (a, b):
+                al.mi[I_DEPTH, column] = depth
+                al.mi[I_STALLED, column] = stalled
+                al.mi[I_LAST, column] = direction
+            spare = free[nfree - 1]
+            alive_a, met_a = _verdict(al, a, pa, sl, spare, lr, hit, (met >> np.uint64(a)) & ONE)
+            alive_b, met_b = _verdict(al, b, pa, sl, spare, lr, hit, (met >> np.uint64(b)) & ONE)
+            if (met_a & met_b) != 0 and (alive_a | alive_b) != 0:  # the hull tests, on copies
+                spare_a = free[nfree - 1]
+                spare_b = free[nfree - 2]
+                to_slot(al, a, sl, spare_a)
+                to_slot(al, b, sl, spare_b)
+                far, near, alive_far, alive_near, _ = near_and_far(sl, spare_a, spare_b, pa, lr, direction, alive_a,
+                                                                   alive_b, 1)
+                if alive_far and alive_near:  # the far half waits on the lane's stack, in its copy
+                    if far == spare_b:  # (taken from the free slots; spare_a stays free)
+                        free[nfree - 2] = spare_a
+                    nfree -= 1
+                    al.stack[lane, al.top[lane]] = far
+                    al.top[lane] += 1
+                far = a if far == spare_a else b
+                near = a if near == spare_a else b
+            else:
+                far, near, alive_far, alive_near = order_halves(ls, a, b, alive_a, alive_b)
+            kept = near if alive_near else (far if alive_far else -1)
+            if kept == b:
+                take |= bit(lane)
+            al.current[lane] = 1 if kept >= 0 else 0
+        if take != ZERO:
+            keep_high_lanes(al.points, al.box, al.mf, al.mi, take)

@@ -1,0 +1,447 @@
+"""Eight sub-patches halved at once, one in each lane (LLVM IR through numba intrinsics): the rays
+a bundle leaves alone go on eight at a time (bundle_alone.py), each with its own bicubic, halved in
+its own direction.
+
+A lane's sub-patch lives in a column of the lane slots: points (3, 16, COLUMNS) in the slots'
+dtype, point k = i + 4 j of coordinate c of lane j's sub-patch at [c, k, j] (a slot's buf[s, c, k],
+records.Slots), box (6, COLUMNS) and mf (MF_LEN, COLUMNS) float64 (a slot's box and mf rows, in
+columns); column LANES + j holds lane j's high half after a halving. Each lane gets exactly what
+the single ray's steps give a slot (subpatch.split_bounds, simd.split_u_cubic / split_v_cubic,
+subpatch.split_intervals, search_steps.finish_halves' widening, subpatch.open_box's slab test):
+the same operations in the same order, lane by lane; the control boxes are reduced in the scalar
+split's order (its four vectors, then lanes 0 with 2 and 1 with 3, then the two), so a bound that
+is a zero has the sign the slot's would have. Both directions are formed where lanes need them and
+each lane keeps its own (dirs: 0 u, 1 v). With NUMBA_DISABLE_JIT=1 the same names are numpy
+versions doing the same operations in the same order.
+"""
+from __future__ import annotations
+
+import numpy as np
+from llvmlite import ir
+from numba import config
+from numba.core import cgutils, types
+from numba.extending import intrinsic
+
+from .ray import R_D, R_INV, R_O, T_SLACK
+from .subpatch import I_LAST, SPLIT_CROSS, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, MF_LEN, MI_LEN
+
+LANES = 8
+COLUMNS = 2 * LANES
+# Rows of the lanes' rays (LANE_RAY, LANES): origin in the patch's frame xyz, direction xyz,
+# 1 / direction xyz; and of a halving's per-lane inputs (STEP_LEN, LANES): the parent's criterion
+# diameter (the halves' M_DPAR), whether its box shrank, its slab interval.
+LANE_RAY = 9
+S_DCRIT, S_SHRANK, S_START, S_STOP = 0, 1, 2, 3
+STEP_LEN = 4
+
+
+def _halves(mid, curve):
+    """de Casteljau at 1/2 of a cubic's four points (simd._make_split's lerps): (low, high)."""
+    p0, p1, p2, p3 = curve
+    q0, q1, q2 = mid(p0, p1), mid(p1, p2), mid(p2, p3)
+    s0, s1 = mid(q0, q1), mid(q1, q2)
+    m = mid(s0, s1)
+    return [p0, q0, s0, m], [m, s1, q2, p3]
+
+
+def _lines(along_u):
+    """The point indices of the four lines a halving runs along: rows j through i along u,
+    columns i through j along v. Each line's points are one of the four vectors simd's split
+    reduces first for the box, in that order."""
+    return [[i + 4 * line for i in range(4)] if along_u else [line + 4 * j for j in range(4)] for line in range(4)]
+
+
+def _split_pass(mid, vmin, vmax, points, along_u):
+    """One direction's halving of a coordinate's 16 points: (low, high, {(half, op): bound})."""
+    low, high, acc = [None] * 16, [None] * 16, {}
+    for ks in _lines(along_u):
+        for half, half_points in enumerate(_halves(mid, [points[k] for k in ks])):
+            for op in (vmin, vmax):
+                value = half_points[0]
+                for point in half_points[1:]:
+                    value = op(value, point)
+                acc.setdefault((half, op), []).append(value)
+            for k, value in zip(ks, half_points):
+                (low, high)[half][k] = value
+    bounds = {key: key[1](key[1](a[0], a[2]), key[1](a[1], a[3])) for key, a in acc.items()}
+    return low, high, bounds
+
+
+# ---- numpy versions (NUMBA_DISABLE_JIT=1), and the reference the intrinsics are tested against ----
+
+def _np_min(a, b):
+    return np.where(a < b, a, b)
+
+
+def _np_max(a, b):
+    return np.where(a > b, a, b)
+
+
+def split_cubic_lanes_python(points, dirs, box):
+    """numpy version of split_cubic_lanes."""
+    half = points.dtype.type(0.5)
+    along_v = dirs != 0
+    for c in range(3):
+        pts = [points[c, k, :LANES].copy() for k in range(16)]
+        passes = [_split_pass(lambda a, b: (a + b) * half, _np_min, _np_max, pts, along_u) for along_u in (True, False)]
+        for h in range(2):
+            column = slice(h * LANES, (h + 1) * LANES)
+            for row, op in ((c, _np_min), (3 + c, _np_max)):
+                box[row, column] = np.where(along_v, passes[1][2][(h, op)], passes[0][2][(h, op)])
+            for k in range(16):
+                points[c, k, column] = np.where(along_v, passes[1][h][k], passes[0][h][k])
+
+
+def _slab_python(lo, hi, lray, t_in, t_out):
+    fail = np.zeros(LANES, bool)
+    for c in range(3):
+        a0 = lo[c] - lray[R_O + c]
+        b0 = hi[c] - lray[R_O + c]
+        flat = lray[R_D + c] == 0.0
+        fail |= flat & ((a0 > 0.0) | (b0 < 0.0))
+        with np.errstate(invalid='ignore', over='ignore'):
+            a = a0 * lray[R_INV + c]
+            b = b0 * lray[R_INV + c]
+        a, b = np.where(a > b, b, a), np.where(a > b, a, b)
+        b = b + np.abs(b) * T_SLACK
+        t_in = np.where(~flat & (a > t_in), a, t_in)
+        t_out = np.where(~flat & (b < t_out), b, t_out)
+    return t_in, t_out, ~fail & (t_in <= t_out)
+
+
+def _direction_python(points, mi, lray, step, split_mode):
+    """subpatch.split_direction for integral bicubics (corners 0, 3, 12, 15), or the other
+    direction than last time where the box did not shrink."""
+    corner = {k: [points[c, k, :LANES].astype(np.float64) for c in range(3)] for k in (0, 3, 12, 15)}
+    lengths = []
+    for edges in (((3, 0), (15, 12)), ((12, 0), (15, 3))):  # u edges, v edges
+        longest = np.zeros(LANES)
+        for b, a in edges:
+            ex, ey, ez = (corner[b][c] - corner[a][c] for c in range(3))
+            if split_mode == SPLIT_CROSS:
+                dx, dy, dz = (lray[R_D + c] for c in range(3))
+                ex, ey, ez = ey * dz - ez * dy, ez * dx - ex * dz, ex * dy - ey * dx
+            longest = np.maximum(longest, ex * ex + ey * ey + ez * ez)
+        lengths.append(longest)
+    last = mi[I_LAST, :LANES]
+    other = np.where(last >= 0, 1 - last, 0)
+    return np.where(step[S_SHRANK] != 0.0, np.where(lengths[0] > lengths[1], 0, 1), other).astype(np.int32)
+
+
+def halve_lanes_python(points, dirs, box, mf, mi, lray, step, levels, sub_scale, split_mode):
+    """numpy version of halve_lanes."""
+    low, high = slice(0, LANES), slice(LANES, COLUMNS)
+    dirs[:] = _direction_python(points, mi, lray, step, split_mode)
+    along_v = dirs != 0
+    for c in range(3):  # subpatch.split_bounds
+        bound = mf[M_E + c, low] + levels * np.maximum(np.abs(box[c, low]), np.abs(box[3 + c, low]))
+        mf[M_E + c, high] = bound
+        mf[M_E + c, low] = bound
+    split_cubic_lanes_python(points, dirs, box)
+    for r in range(4):  # subpatch.split_intervals
+        mf[M_U0 + r, high] = mf[M_U0 + r, low]
+    mid_u = 0.5 * (mf[M_U0, low] + mf[M_U1, low])
+    mid_v = 0.5 * (mf[M_V0, low] + mf[M_V1, low])
+    mf[M_U1, low] = np.where(along_v, mf[M_U1, low], mid_u)
+    mf[M_U0, high] = np.where(along_v, mf[M_U0, high], mid_u)
+    mf[M_V1, low] = np.where(along_v, mid_v, mf[M_V1, low])
+    mf[M_V0, high] = np.where(along_v, mid_v, mf[M_V0, high])
+    for r in (M_OX, M_OX + 1, M_OX + 2, M_GULP):
+        mf[r, high] = mf[r, low]
+    bits = 0
+    for h, column in enumerate((low, high)):  # widen, M_DPAR, open_box
+        mag = np.zeros(LANES)
+        for k in range(6):
+            mag = np.maximum(mag, np.abs(box[k, column]))
+        mf[M_MAG, column] = mag
+        sub = mag * sub_scale
+        widening = np.zeros(LANES)
+        for c in range(3):
+            e = mf[M_E + c, column] if sub_scale == 0.0 else mf[M_E + c, column] + sub
+            box[c, column] -= e
+            box[3 + c, column] += e
+            widening = widening + 2.0 * e
+        mf[M_W, column] = widening
+        mf[M_D, column] = ((box[3, column] - box[0, column]) + (box[4, column] - box[1, column])
+                           + (box[5, column] - box[2, column]))
+        mf[M_DPAR, column] = step[S_DCRIT]
+        lo = [box[c, column] + mf[M_OX + c, column] for c in range(3)]
+        hi = [box[3 + c, column] + mf[M_OX + c, column] for c in range(3)]
+        t_in, t_out, meets = _slab_python(lo, hi, lray, step[S_START].copy(), step[S_STOP].copy())
+        mf[M_TIN, column] = t_in
+        mf[M_TOUT, column] = t_out
+        for lane in range(LANES):
+            if meets[lane]:
+                bits |= 1 << (LANES * h + lane)
+    return np.uint64(bits)
+
+
+def keep_high_lanes_python(points, box, mf, mi, take):
+    """numpy version of keep_high_lanes."""
+    for lane in range(LANES):
+        if (int(take) >> lane) & 1:
+            for arr in (box, mf, mi):
+                arr[:, lane] = arr[:, LANES + lane]
+            points[:, :, lane] = points[:, :, LANES + lane]
+
+
+# ---- the intrinsics ----
+
+def _is_c(arr, ndim, dtypes) -> bool:
+    return isinstance(arr, types.Array) and arr.ndim == ndim and arr.layout == 'C' and arr.dtype in dtypes
+
+
+class _Columns:
+    """Vector access to rows of (rows, COLUMNS) C arrays: a row's LANES low or high columns."""
+
+    def __init__(self, context, builder, signature, args):
+        self.context, self.builder, self.signature, self.args = context, builder, signature, args
+
+    def base(self, k, elem):
+        arr = self.context.make_array(self.signature.args[k])(self.context, self.builder, self.args[k])
+        return self.builder.bitcast(arr.data, ir.VectorType(elem, LANES).as_pointer())
+
+    def at(self, ptr, row, high):
+        return self.builder.gep(ptr, [ir.IntType(32)(2 * row + high)])
+
+    def load(self, ptr, row, high=0):
+        return self.builder.load(self.at(ptr, row, high), align=8)
+
+    def store(self, value, ptr, row, high=0):
+        self.builder.store(value, self.at(ptr, row, high), align=8)
+
+
+def _ops(builder, vec):
+    def vmin(a, b):
+        return builder.select(builder.fcmp_ordered('<', a, b), a, b)
+
+    def vmax(a, b):
+        return builder.select(builder.fcmp_ordered('>', a, b), a, b)
+
+    def fabs(value):
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vec, [vec]),
+                                            f'llvm.fabs.v{LANES}f{64 if vec.element == ir.DoubleType() else 32}')
+        return builder.call(fn, [value])
+    return vmin, vmax, fabs
+
+
+def _emit_split(cols, elem, pts, boxes, along_v):
+    """IR of split_cubic_lanes: points and box rows (both (..., COLUMNS)) from the lanes' points.
+    A lane halving along v first has its points transposed (point i + 4 j to j + 4 i, a select a
+    point), so that one pass along u serves every lane: its lines are then the v pass's columns,
+    point for point and in the same order, so the midpoints and the bounds' order of reduction are
+    the v pass's too; the halves are transposed back as they are stored."""
+    builder = cols.builder
+    vf = ir.VectorType(elem, LANES)
+    vd = ir.VectorType(ir.DoubleType(), LANES)
+    half = ir.Constant(vf, [ir.Constant(elem, 0.5)] * LANES)
+    vmin, vmax, _ = _ops(builder, vf)
+    size = cols.context.get_abi_sizeof(elem)
+
+    def mid(a, b):
+        return builder.fmul(builder.fadd(a, b), half)
+
+    def transposed(points):
+        return [builder.select(along_v, points[4 * (k % 4) + k // 4], points[k]) for k in range(16)]
+
+    for c in range(3):
+        pts_c = transposed([builder.load(cols.at(pts, 16 * c + k, 0), align=size) for k in range(16)])
+        low, high, bounds = _split_pass(mid, vmin, vmax, pts_c, True)
+        for h, half_points in enumerate((low, high)):
+            for k, value in enumerate(transposed(half_points)):
+                builder.store(value, cols.at(pts, 16 * c + k, h), align=size)
+            for row, op in ((c, vmin), (3 + c, vmax)):
+                value = bounds[(h, op)]
+                cols.store(builder.fpext(value, vd) if elem != ir.DoubleType() else value, boxes, row, h)
+
+
+def split_cubic_lanes(typingctx, points, dirs, box):
+    """Halve each lane's bicubic (points: (3, 16, COLUMNS), columns 0..LANES-1; the low half stays
+    there, the high half goes to column LANES + lane) in its direction (dirs: (LANES,) int32, 0 u,
+    1 v); both halves' control boxes into the same columns of box ((6, COLUMNS) float64)."""
+    if not (_is_c(points, 3, (types.float32, types.float64)) and _is_c(dirs, 1, (types.int32,))
+            and _is_c(box, 2, (types.float64,))):
+        return None
+    sig = types.void(points, dirs, box)
+
+    def codegen(context, builder, signature, args):
+        cols = _Columns(context, builder, signature, args)
+        elem = context.get_value_type(signature.args[0].dtype)
+        vi = ir.VectorType(ir.IntType(32), LANES)
+        along_v = builder.icmp_signed('!=', builder.load(cols.base(1, ir.IntType(32)), align=4),
+                                      ir.Constant(vi, [0] * LANES))
+        _emit_split(cols, elem, cols.base(0, elem), cols.base(2, ir.DoubleType()), along_v)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+def halve_lanes(typingctx, points, dirs, box, mf, mi, lray, step, levels, sub_scale, split_mode):
+    """A halving of every lane's bicubic, its column of the lane slots (points, box, mf) into the
+    low half (in place) and the high half (column LANES + lane), as the single ray's steps make
+    it: search_steps.halving_direction (into dirs; split_mode: options.SPLIT_CODE's), subpatch.split_bounds (levels: the split's rounding per unit of magnitude), the split in
+    dirs' direction, split_intervals, the halves' widening (sub_scale: PatchInfo.sub_scale) and
+    M_DPAR (step[S_DCRIT]), and each half's slab test against its lane's ray (lray: (LANE_RAY,
+    LANES)) within step[S_START], step[S_STOP] (M_TIN, M_TOUT written). Returns bit lane where the
+    ray meets the low half, LANES + lane where it meets the high one (uint64)."""
+    if not (_is_c(points, 3, (types.float32, types.float64)) and _is_c(dirs, 1, (types.int32,))
+            and all(_is_c(a, 2, (types.float64,)) for a in (box, mf, lray, step)) and _is_c(mi, 2, (types.int32,))):
+        return None
+    sig = types.uint64(points, dirs, box, mf, mi, lray, step, types.float64, types.float64, types.int64)
+
+    def codegen(context, builder, signature, args):
+        cols = _Columns(context, builder, signature, args)
+        double = ir.DoubleType()
+        elem = context.get_value_type(signature.args[0].dtype)
+        vd = ir.VectorType(double, LANES)
+        vi = ir.VectorType(ir.IntType(32), LANES)
+        pts, boxes, meta = cols.base(0, elem), cols.base(2, double), cols.base(3, double)
+        rays = builder.bitcast(context.make_array(signature.args[5])(context, builder, args[5]).data, vd.as_pointer())
+        steps = builder.bitcast(context.make_array(signature.args[6])(context, builder, args[6]).data,
+                                vd.as_pointer())
+        vmin, vmax, fabs = _ops(builder, vd)
+
+        def splat(value):
+            return builder.shuffle_vector(builder.insert_element(ir.Constant(vd, ir.Undefined), value,
+                                                                 ir.IntType(32)(0)),
+                                          ir.Constant(vd, ir.Undefined), ir.Constant(vi, [0] * LANES))
+
+        def const(value):
+            return ir.Constant(vd, [ir.Constant(double, value)] * LANES)
+
+        def ray_row(k):
+            return builder.load(builder.gep(rays, [ir.IntType(32)(k)]), align=8)
+
+        def step_row(k):
+            return builder.load(builder.gep(steps, [ir.IntType(32)(k)]), align=8)
+
+        levels_v, sub_scale_v = splat(args[7]), splat(args[8])
+        # search_steps.halving_direction: split_direction's edge lengths (corners 0, 3, 12, 15 in
+        # float64), or the other direction than last time where the box did not shrink
+        corner = {k: [builder.fpext(builder.load(cols.at(pts, 16 * c + k, 0), align=4), vd)
+                      if elem != double else builder.load(cols.at(pts, 16 * c + k, 0), align=8) for c in range(3)]
+                  for k in (0, 3, 12, 15)}
+        cross = builder.icmp_signed('==', args[9], ir.Constant(ir.IntType(64), SPLIT_CROSS))
+        d = [ray_row(R_D + c) for c in range(3)]
+        lengths = []
+        for edges in (((3, 0), (15, 12)), ((12, 0), (15, 3))):  # u edges, v edges
+            longest = const(0.0)
+            for b_k, a_k in edges:
+                ex, ey, ez = (builder.fsub(corner[b_k][c], corner[a_k][c]) for c in range(3))
+                cx = builder.fsub(builder.fmul(ey, d[2]), builder.fmul(ez, d[1]))
+                cy = builder.fsub(builder.fmul(ez, d[0]), builder.fmul(ex, d[2]))
+                cz = builder.fsub(builder.fmul(ex, d[1]), builder.fmul(ey, d[0]))
+                ex, ey, ez = (builder.select(cross, crossed, plain) for crossed, plain in ((cx, ex), (cy, ey), (cz, ez)))
+                length = builder.fadd(builder.fadd(builder.fmul(ex, ex), builder.fmul(ey, ey)), builder.fmul(ez, ez))
+                longest = vmax(longest, length)
+            lengths.append(longest)
+        i32 = ir.IntType(32)
+        by_length = builder.select(builder.fcmp_ordered('>', lengths[0], lengths[1]), ir.Constant(vi, [0] * LANES),
+                                   ir.Constant(vi, [1] * LANES))
+        mis = cols.base(4, i32)
+        last = cols.load(mis, I_LAST)
+        other = builder.select(builder.icmp_signed('>=', last, ir.Constant(vi, [0] * LANES)),
+                               builder.sub(ir.Constant(vi, [1] * LANES), last), ir.Constant(vi, [0] * LANES))
+        shrank = builder.fcmp_ordered('!=', step_row(S_SHRANK), const(0.0))
+        dirs = builder.select(shrank, by_length, other)
+        builder.store(dirs, cols.base(1, i32), align=4)
+        along_v = builder.icmp_signed('!=', dirs, ir.Constant(vi, [0] * LANES))
+        for c in range(3):  # subpatch.split_bounds, from the parent's (widened) box
+            bound = builder.fadd(cols.load(meta, M_E + c), builder.fmul(
+                levels_v, vmax(fabs(cols.load(boxes, c)), fabs(cols.load(boxes, 3 + c)))))
+            cols.store(bound, meta, M_E + c, 1)
+            cols.store(bound, meta, M_E + c, 0)
+        _emit_split(cols, elem, pts, boxes, along_v)
+        u0, u1, v0, v1 = (cols.load(meta, r) for r in (M_U0, M_U1, M_V0, M_V1))  # subpatch.split_intervals
+        half = const(0.5)
+        mid_u = builder.fmul(half, builder.fadd(u0, u1))
+        mid_v = builder.fmul(half, builder.fadd(v0, v1))
+        cols.store(builder.select(along_v, u0, mid_u), meta, M_U0, 1)
+        cols.store(builder.select(along_v, u1, mid_u), meta, M_U1, 0)
+        cols.store(u1, meta, M_U1, 1)
+        cols.store(builder.select(along_v, mid_v, v0), meta, M_V0, 1)
+        cols.store(builder.select(along_v, mid_v, v1), meta, M_V1, 0)
+        cols.store(v1, meta, M_V1, 1)
+        for r in (M_OX, M_OX + 1, M_OX + 2, M_GULP):
+            cols.store(cols.load(meta, r), meta, r, 1)
+        unshared = builder.fcmp_ordered('!=', sub_scale_v, const(0.0))
+        bits = ir.Constant(ir.IntType(64), 0)
+        for h in range(2):  # search_steps.finish_halves' widening and M_DPAR, subpatch.open_box
+            corners = [cols.load(boxes, k, h) for k in range(6)]
+            mag = const(0.0)
+            for k in range(6):
+                mag = vmax(mag, fabs(corners[k]))
+            cols.store(mag, meta, M_MAG, h)
+            sub = builder.fmul(mag, sub_scale_v)
+            widening = const(0.0)
+            for c in range(3):
+                e = cols.load(meta, M_E + c, h)
+                e = builder.select(unshared, builder.fadd(e, sub), e)
+                corners[c] = builder.fsub(corners[c], e)
+                corners[3 + c] = builder.fadd(corners[3 + c], e)
+                widening = builder.fadd(widening, builder.fmul(const(2.0), e))
+            for k in range(6):
+                cols.store(corners[k], boxes, k, h)
+            cols.store(widening, meta, M_W, h)
+            cols.store(builder.fadd(builder.fadd(builder.fsub(corners[3], corners[0]),
+                                                 builder.fsub(corners[4], corners[1])),
+                                    builder.fsub(corners[5], corners[2])), meta, M_D, h)
+            cols.store(step_row(S_DCRIT), meta, M_DPAR, h)
+            t_in, t_out = step_row(S_START), step_row(S_STOP)
+            fail = ir.Constant(ir.VectorType(ir.IntType(1), LANES), [0] * LANES)
+            for c in range(3):  # ray.slab_at's operations, as lanes._slab_vectors
+                offset = cols.load(meta, M_OX + c, h)
+                origin = ray_row(R_O + c)
+                lo = builder.fsub(builder.fadd(corners[c], offset), origin)
+                hi = builder.fsub(builder.fadd(corners[3 + c], offset), origin)
+                flat = builder.fcmp_ordered('==', ray_row(R_D + c), const(0.0))
+                outside = builder.or_(builder.fcmp_ordered('>', lo, const(0.0)), builder.fcmp_ordered('<', hi, const(0.0)))
+                fail = builder.or_(fail, builder.and_(flat, outside))
+                inv = ray_row(R_INV + c)
+                a = builder.fmul(lo, inv)
+                b = builder.fmul(hi, inv)
+                swap = builder.fcmp_ordered('>', a, b)
+                a, b = builder.select(swap, b, a), builder.select(swap, a, b)
+                b = builder.fadd(b, builder.fmul(fabs(b), const(T_SLACK)))
+                sloped = builder.not_(flat)
+                t_in = builder.select(builder.and_(sloped, builder.fcmp_ordered('>', a, t_in)), a, t_in)
+                t_out = builder.select(builder.and_(sloped, builder.fcmp_ordered('<', b, t_out)), b, t_out)
+            cols.store(t_in, meta, M_TIN, h)
+            cols.store(t_out, meta, M_TOUT, h)
+            meets = builder.and_(builder.not_(fail), builder.fcmp_ordered('<=', t_in, t_out))
+            met = builder.zext(builder.bitcast(meets, ir.IntType(LANES)), ir.IntType(64))
+            bits = builder.or_(bits, builder.shl(met, ir.Constant(ir.IntType(64), LANES * h)))
+        return bits
+
+    return sig, codegen
+
+
+def keep_high_lanes(typingctx, points, box, mf, mi, take):
+    """Where bit lane of `take` is set, column LANES + lane of the lane slots into column lane."""
+    if not (_is_c(points, 3, (types.float32, types.float64)) and _is_c(box, 2, (types.float64,))
+            and _is_c(mf, 2, (types.float64,)) and _is_c(mi, 2, (types.int32,))):
+        return None
+    sig = types.void(points, box, mf, mi, types.uint64)
+
+    def codegen(context, builder, signature, args):
+        cols = _Columns(context, builder, signature, args)
+        mask = builder.bitcast(builder.trunc(args[4], ir.IntType(LANES)), ir.VectorType(ir.IntType(1), LANES))
+        elem = context.get_value_type(signature.args[0].dtype)
+        for k, elem_k, rows in ((0, elem, 48), (1, ir.DoubleType(), 6), (2, ir.DoubleType(), MF_LEN),
+                                (3, ir.IntType(32), MI_LEN)):
+            base = cols.base(k, elem_k)
+            for row in range(rows):
+                cols.store(builder.select(mask, cols.load(base, row, 1), cols.load(base, row, 0)), base, row, 0)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+if config.DISABLE_JIT:
+    split_cubic_lanes = split_cubic_lanes_python  # noqa: F811
+    halve_lanes = halve_lanes_python  # noqa: F811
+    keep_high_lanes = keep_high_lanes_python  # noqa: F811
+else:
+    split_cubic_lanes = intrinsic(split_cubic_lanes)  # noqa: F811
+    halve_lanes = intrinsic(halve_lanes)  # noqa: F811
+    keep_high_lanes = intrinsic(keep_high_lanes)  # noqa: F811
