@@ -323,7 +323,7 @@ def make_bundle_search(variant, alone: bool = True, sided: bool = True):
         alone_kernel = None
         if alone:
             alone_kernel = kernel(specialise(_rays_alone, solo=solo(kinds["HAS_GENERAL"]), **kinds, **flags))
-            if kinds["HAS_CUBIC"] and not kinds["WIDE"] and not variant.trims:  # bicubics' rays eight at a time
+            if (kinds["HAS_CUBIC"] or kinds["HAS_LINEAR"]) and not kinds["WIDE"] and not variant.trims:  # 8 at once
                 alone_kernel = kernel(specialise(_rays_alone_lanes, rays_alone=alone_kernel, **kinds, **flags))
         return kernel(specialise(_bundle_search, rays_alone=alone_kernel, **kinds, **flags))
     narrow = None

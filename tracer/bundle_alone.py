@@ -21,11 +21,11 @@ from .bundle_steps import ONE, ZERO, bit, lane_limit, lowest_bit
 from .hull import hull_behind
 from .jit import njit
 from .lanes import L_HIT
-from .lanes_split import (COLUMNS, LANE_RAY, LANES, S_DCRIT, S_SHRANK, S_START, S_STOP, STEP_LEN, halve_lanes,
-                          keep_high_lanes)
-from .ray import R_D, R_INV, R_O, R_REACH, R_TMIN, before_best
+from .lanes_split import (COLUMNS, LANE_RAY, LANES, LR_DT, LR_T0, S_DCRIT, S_SHRANK, S_START, S_STOP, STEP_LEN, halve_lanes,
+                          halve_lanes_linear, judge_lanes, keep_high_lanes)
+from .ray import R_D, R_DT, R_INV, R_O, R_REACH, R_T0, R_TMIN, before_best
 from .records import C_EFFORT, Slots
-from .search_steps import (ahead, hull_accepts, judge_known, near_and_far, order_halves, report,
+from .search_steps import (MANTISSA, ahead, hull_accepts, judge_known, near_and_far, order_halves, report,
                            tighten, tightening)
 from .subpatch import I_DEPTH, I_LAST, I_STALLED, I_TRIM, MF_LEN, MI_LEN, M_TIN, M_TOUT, M_U0, M_V0, patch_info
 
@@ -59,10 +59,10 @@ def lane_slots(al, sl):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def to_slot(al, column, sl, s):
-    """Column `column` of the lane slots into working slot s."""
+def to_slot(al, column, sl, s, count):
+    """Column `column` of the lane slots into working slot s (count: its control points)."""
     for c in range(3):
-        for k in range(16):
+        for k in range(count):
             sl.buf[s, c, k] = al.points[c, k, column]
     for k in range(6):
         sl.box[s, k] = al.box[k, column]
@@ -73,10 +73,10 @@ def to_slot(al, column, sl, s):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def from_slot(al, column, sl, s):
-    """Working slot s into column `column` of the lane slots."""
+def from_slot(al, column, sl, s, count):
+    """Working slot s into column `column` of the lane slots (count: its control points)."""
     for c in range(3):
-        for k in range(16):
+        for k in range(count):
             al.points[c, k, column] = sl.buf[s, c, k]
     for k in range(6):
         al.box[k, column] = sl.box[s, k]
@@ -92,6 +92,8 @@ def _take_ray(al, lane, lr):
         al.lray[R_O + k, lane] = lr[R_O + k]
         al.lray[R_D + k, lane] = lr[R_D + k]
         al.lray[R_INV + k, lane] = lr[R_INV + k]
+    al.lray[LR_T0, lane] = lr[R_T0]
+    al.lray[LR_DT, lane] = lr[R_DT]
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -103,7 +105,7 @@ def _verdict(al, column, pa, sl, spare, ray, hit, met):
     alive = ok and al.mf[M_TOUT, column] >= ray[R_REACH] and before_best(t_in, al.mf[M_U0, column],
                                                                           al.mf[M_V0, column], hit, pa.p)
     if ok and t_in <= ray[R_TMIN]:  # a box holding the origin (rare): the hull test, on a copy
-        to_slot(al, column, sl, spare)
+        to_slot(al, column, sl, spare, pa.count)
         if hull_behind(sl, spare, pa, ray):
             alive = ok = False
     return 1 if alive else 0, 1 if ok else 0
@@ -113,7 +115,7 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
     """bundle._rays_alone for a bicubic's rays eight at a time (see the module's doc); other
     patches' rays one after another (rays_alone)."""
     pa = patch_info(lv, p, q.bits, False, HAS_CUBIC, HAS_LINEAR)  # noqa: F821
-    if not pa.cubic:
+    if not (pa.cubic or pa.linear):
         return rays_alone(p, lv, trims, q, sl, br, waiting, base, nfree)  # noqa: F821
     al = br.alone
     ls = lane_slots(al, sl)
@@ -123,9 +125,11 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
         al.ray[lane] = -1
         al.current[lane] = 0
         al.top[lane] = 0
+    mantissa = q.criterion == MANTISSA
+    grid = lv.grid
     while True:
-        ready = ZERO
-        for lane in range(LANES):  # every lane to its next halving, or out of rays
+        have = ZERO
+        for lane in range(LANES):  # every lane to its next sub-patch still ahead, or out of rays
             while True:
                 r = al.ray[lane]
                 if r < 0:
@@ -136,7 +140,7 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
                     al.ray[lane] = r
                     _take_ray(al, lane, br.lrays[r])
                     start = br.waiting[r]
-                    from_slot(al, lane, sl, start)
+                    from_slot(al, lane, sl, start, pa.count)
                     free[nfree] = start
                     nfree += 1
                     al.current[lane] = 1
@@ -147,39 +151,61 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
                         continue
                     al.top[lane] -= 1
                     s = al.stack[lane, al.top[lane]]
-                    from_slot(al, lane, sl, s)
+                    from_slot(al, lane, sl, s, pa.count)
                     free[nfree] = s
                     nfree += 1
                     al.current[lane] = 1
-                hit = br.hits[r]
-                lr = br.lrays[r]
-                if not ahead(ls, lane, pa, hit):
-                    al.current[lane] = 0
-                    continue
-                stop, d_crit, shrank, _ = judge_known(ls, lane, pa, lv, lr, q, -1.0)
-                if stop:
-                    spare = free[nfree - 1]
-                    to_slot(al, lane, sl, spare)
-                    if hull_accepts(sl, spare, pa, lv, lr, q):
-                        report(hit, sl, spare, pa, lv)
-                    al.current[lane] = 0
-                    continue
-                br.counts[r, C_EFFORT] += 2
-                al.step[S_START, lane] = al.mf[M_TIN, lane]
-                al.step[S_STOP, lane] = al.mf[M_TOUT, lane]
-                if tightening(ls, lane, pa) != 0:  # (rare) on a copy in a working slot
-                    spare = free[nfree - 1]
-                    to_slot(al, lane, sl, spare)
-                    tighten(sl, spare, pa, lv)
-                    from_slot(al, lane, sl, spare)
+                if ahead(ls, lane, pa, br.hits[r]):
+                    have |= bit(lane)
+                    break
+                al.current[lane] = 0
+        if have == ZERO:
+            return nfree
+        if mantissa:  # (the criterion's test reads the ray: one lane at a time)
+            stop = ZERO
+            m = have
+            while m != ZERO:
+                lane = lowest_bit(m)
+                m &= m - ONE
+                stopped, d_crit, shrank, _ = judge_known(ls, lane, pa, lv, br.lrays[al.ray[lane]], q, -1.0)
                 al.step[S_DCRIT, lane] = d_crit
                 al.step[S_SHRANK, lane] = 1.0 if shrank else 0.0
-                ready |= bit(lane)
-                break
+                if stopped:
+                    stop |= bit(lane)
+        else:
+            stop = judge_lanes(al.box, al.mf, al.mi, al.lray, al.step, grid[p, 0], grid[p, 1], grid[p, 2],
+                               q.criterion, q.param, q.max_depth, pa.shrink_factor, pa.rational)
+        ready = ZERO
+        m = have
+        while m != ZERO:
+            lane = lowest_bit(m)
+            m &= m - ONE
+            r = al.ray[lane]
+            if (stop >> np.uint64(lane)) & ONE:
+                spare = free[nfree - 1]
+                to_slot(al, lane, sl, spare, pa.count)
+                lr = br.lrays[r]
+                if hull_accepts(sl, spare, pa, lv, lr, q):
+                    report(br.hits[r], sl, spare, pa, lv)
+                al.current[lane] = 0
+                continue
+            br.counts[r, C_EFFORT] += 2
+            al.step[S_START, lane] = al.mf[M_TIN, lane]
+            al.step[S_STOP, lane] = al.mf[M_TOUT, lane]
+            if tightening(ls, lane, pa) != 0:  # (rare) on a copy in a working slot
+                spare = free[nfree - 1]
+                to_slot(al, lane, sl, spare, pa.count)
+                tighten(sl, spare, pa, lv)
+                from_slot(al, lane, sl, spare, pa.count)
+            ready |= bit(lane)
         if ready == ZERO:
-            return nfree
-        met = halve_lanes(al.points, al.dirs, al.box, al.mf, al.mi, al.lray, al.step, pa.m * pa.round_unit,
-                          pa.sub_scale, q.split_mode)
+            continue
+        if pa.cubic:
+            met = halve_lanes(al.points, al.dirs, al.box, al.mf, al.mi, al.lray, al.step, pa.m * pa.round_unit,
+                              pa.sub_scale, q.split_mode)
+        else:
+            met = halve_lanes_linear(al.points, al.dirs, al.box, al.mf, al.mi, al.lray, al.step,
+                                     pa.m * pa.round_unit, pa.sub_scale, q.split_mode)
         take = ZERO
         m = ready
         while m != ZERO:
@@ -204,8 +230,8 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
             if (met_a & met_b) != 0 and (alive_a | alive_b) != 0:  # the hull tests, on copies
                 spare_a = free[nfree - 1]
                 spare_b = free[nfree - 2]
-                to_slot(al, a, sl, spare_a)
-                to_slot(al, b, sl, spare_b)
+                to_slot(al, a, sl, spare_a, pa.count)
+                to_slot(al, b, sl, spare_b, pa.count)
                 far, near, alive_far, alive_near, _ = near_and_far(sl, spare_a, spare_b, pa, lr, direction, alive_a,
                                                                    alive_b, 1)
                 if alive_far and alive_near:  # the far half waits on the lane's stack, in its copy

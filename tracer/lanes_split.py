@@ -16,6 +16,8 @@ versions doing the same operations in the same order.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from llvmlite import ir
 from numba import config
@@ -23,16 +25,23 @@ from numba.core import cgutils, types
 from numba.extending import intrinsic
 
 from .ray import R_D, R_INV, R_O, T_SLACK
-from .subpatch import I_LAST, SPLIT_CROSS, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, MF_LEN, MI_LEN
+from .search_steps import ADAPTIVE, FIXED, GRID_PREFILTER
+from .subpatch import I_DEPTH, I_LAST, I_STALLED, SPLIT_CROSS, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, MF_LEN, MI_LEN
 
 LANES = 8
 COLUMNS = 2 * LANES
 # Rows of the lanes' rays (LANE_RAY, LANES): origin in the patch's frame xyz, direction xyz,
 # 1 / direction xyz; and of a halving's per-lane inputs (STEP_LEN, LANES): the parent's criterion
 # diameter (the halves' M_DPAR), whether its box shrank, its slab interval.
-LANE_RAY = 9
+LR_T0, LR_DT = 9, 10  # (and the adaptive criterion's threshold of detail at t = 0 and its growth)
+LANE_RAY = 11
 S_DCRIT, S_SHRANK, S_START, S_STOP = 0, 1, 2, 3
 STEP_LEN = 4
+
+
+# The corners split_direction measures, as (u edges, v edges), each edge (end, start) point indices.
+CUBIC_EDGES = (((3, 0), (15, 12)), ((12, 0), (15, 3)))
+LINEAR_EDGES = (((1, 0), (3, 2)), ((2, 0), (3, 1)))
 
 
 def _halves(mid, curve):
@@ -99,22 +108,23 @@ def _slab_python(lo, hi, lray, t_in, t_out):
         b0 = hi[c] - lray[R_O + c]
         flat = lray[R_D + c] == 0.0
         fail |= flat & ((a0 > 0.0) | (b0 < 0.0))
-        with np.errstate(invalid='ignore', over='ignore'):
+        with np.errstate(invalid='ignore', over='ignore'):  # (a flat axis's products are not used)
             a = a0 * lray[R_INV + c]
             b = b0 * lray[R_INV + c]
-        a, b = np.where(a > b, b, a), np.where(a > b, a, b)
-        b = b + np.abs(b) * T_SLACK
+            a, b = np.where(a > b, b, a), np.where(a > b, a, b)
+            b = b + np.abs(b) * T_SLACK
         t_in = np.where(~flat & (a > t_in), a, t_in)
         t_out = np.where(~flat & (b < t_out), b, t_out)
     return t_in, t_out, ~fail & (t_in <= t_out)
 
 
-def _direction_python(points, mi, lray, step, split_mode):
-    """subpatch.split_direction for integral bicubics (corners 0, 3, 12, 15), or the other
-    direction than last time where the box did not shrink."""
-    corner = {k: [points[c, k, :LANES].astype(np.float64) for c in range(3)] for k in (0, 3, 12, 15)}
+def _direction_python(points, mi, lray, step, split_mode, all_edges):
+    """subpatch.split_direction for integral bicubics or bilinears (all_edges: CUBIC_EDGES,
+    LINEAR_EDGES), or the other direction than last time where the box did not shrink."""
+    corner = {k: [points[c, k, :LANES].astype(np.float64) for c in range(3)] for edges in all_edges
+              for edge in edges for k in edge}
     lengths = []
-    for edges in (((3, 0), (15, 12)), ((12, 0), (15, 3))):  # u edges, v edges
+    for edges in all_edges:  # u edges, v edges
         longest = np.zeros(LANES)
         for b, a in edges:
             ex, ey, ez = (corner[b][c] - corner[a][c] for c in range(3))
@@ -128,16 +138,37 @@ def _direction_python(points, mi, lray, step, split_mode):
     return np.where(step[S_SHRANK] != 0.0, np.where(lengths[0] > lengths[1], 0, 1), other).astype(np.int32)
 
 
-def halve_lanes_python(points, dirs, box, mf, mi, lray, step, levels, sub_scale, split_mode):
-    """numpy version of halve_lanes."""
+def split_linear_lanes_python(points, dirs, box):
+    """numpy version of bezier._split_linear for each lane's bilinear (points 0..3), in columns."""
+    half = points.dtype.type(0.5)
+    along_v = dirs != 0
+    pairs = np.where(along_v[None, :], np.array([[0], [2], [1], [3]]), np.array([[0], [1], [2], [3]]))
+    lanes = np.arange(LANES)
+    for c in range(3):
+        pa0, pa1, pb0, pb1 = (points[c, pairs[n], lanes].copy() for n in range(4))
+        m0 = (pa0 + pa1) * half
+        m1 = (pb0 + pb1) * half
+        for h, values in enumerate(((pa0, m0, pb0, m1), (m0, pa1, m1, pb1))):
+            for n in range(4):
+                points[c, pairs[n], lanes + LANES * h] = values[n]
+            lo = hi = values[0]
+            for v in values[1:]:  # numba's min and max of several: the first of equals stays
+                lo = np.where(v < lo, v, lo)
+                hi = np.where(v > hi, v, hi)
+            box[c, LANES * h:LANES * (h + 1)] = lo
+            box[3 + c, LANES * h:LANES * (h + 1)] = hi
+
+
+def halve_lanes_python(points, dirs, box, mf, mi, lray, step, levels, sub_scale, split_mode, linear=False):
+    """numpy version of halve_lanes (linear: halve_lanes_linear's)."""
     low, high = slice(0, LANES), slice(LANES, COLUMNS)
-    dirs[:] = _direction_python(points, mi, lray, step, split_mode)
+    dirs[:] = _direction_python(points, mi, lray, step, split_mode, LINEAR_EDGES if linear else CUBIC_EDGES)
     along_v = dirs != 0
     for c in range(3):  # subpatch.split_bounds
         bound = mf[M_E + c, low] + levels * np.maximum(np.abs(box[c, low]), np.abs(box[3 + c, low]))
         mf[M_E + c, high] = bound
         mf[M_E + c, low] = bound
-    split_cubic_lanes_python(points, dirs, box)
+    (split_linear_lanes_python if linear else split_cubic_lanes_python)(points, dirs, box)
     for r in range(4):  # subpatch.split_intervals
         mf[M_U0 + r, high] = mf[M_U0 + r, low]
     mid_u = 0.5 * (mf[M_U0, low] + mf[M_U1, low])
@@ -174,6 +205,44 @@ def halve_lanes_python(points, dirs, box, mf, mi, lray, step, levels, sub_scale,
             if meets[lane]:
                 bits |= 1 << (LANES * h + lane)
     return np.uint64(bits)
+
+
+def judge_lanes_python(box, mf, mi, lray, step, grid0, grid1, grid2, criterion, param, max_depth, shrink_factor,
+                       rational):
+    """numpy version of judge_lanes."""
+    grid = (grid0, grid1, grid2)
+    low = slice(0, LANES)
+    d = mf[M_D, low]
+    box_limit = GRID_PREFILTER * mf[M_GULP, low]
+    if criterion == FIXED:
+        box_limit = np.maximum(box_limit, param)
+    limit = box_limit
+    detail = np.zeros(LANES)
+    if criterion == ADAPTIVE:
+        detail = lray[LR_T0] + lray[LR_DT] * mf[M_TIN, low]
+        limit = np.maximum(limit, detail)
+    total = np.zeros(LANES)
+    for c in range(3):
+        lo = box[c, low] + mf[M_OX + c, low]
+        hi = box[3 + c, low] + mf[M_OX + c, low]
+        if grid[c] > 0.0:
+            inv = 1.0 / grid[c]
+            total = total + (np.ceil(hi * inv) * grid[c] - np.floor(lo * inv) * grid[c])
+        else:
+            total = total + (hi - lo)
+    d_crit = np.where(d <= limit, total, d)
+    d_box = np.where(d <= box_limit, total, d)
+    stop = mi[I_DEPTH, low] >= max_depth
+    if criterion == FIXED:
+        stop |= d_crit <= param
+    elif criterion == ADAPTIVE:
+        stop |= d_crit <= detail
+    shrank = (d_box < mf[M_DPAR, low] * shrink_factor) & (d > 1.0625 * mf[M_W, low])
+    stop |= (mf[M_U0, low] == mf[M_U1, low]) | (mf[M_V0, low] == mf[M_V1, low])
+    stop |= ~shrank & (mi[I_STALLED, low] == 1) & ~(rational & (d > limit))
+    step[S_DCRIT] = d_box
+    step[S_SHRANK] = np.where(shrank, 1.0, 0.0)
+    return np.uint64(sum(1 << lane for lane in range(LANES) if stop[lane]))
 
 
 def keep_high_lanes_python(points, box, mf, mi, take):
@@ -255,6 +324,33 @@ def _emit_split(cols, elem, pts, boxes, along_v):
                 cols.store(builder.fpext(value, vd) if elem != ir.DoubleType() else value, boxes, row, h)
 
 
+def _emit_split_linear(cols, elem, pts, boxes, along_v):
+    """IR of bezier._split_linear for each lane's bilinear (points 0..3): a lane halving along v
+    has points 1 and 2 swapped on the way in and out, so one pass along u serves every lane."""
+    builder = cols.builder
+    vf = ir.VectorType(elem, LANES)
+    vd = ir.VectorType(ir.DoubleType(), LANES)
+    half = ir.Constant(vf, [ir.Constant(elem, 0.5)] * LANES)
+    size = cols.context.get_abi_sizeof(elem)
+
+    def swapped(p):
+        return [p[0], builder.select(along_v, p[2], p[1]), builder.select(along_v, p[1], p[2]), p[3]]
+
+    for c in range(3):
+        pa0, pa1, pb0, pb1 = swapped([builder.load(cols.at(pts, 16 * c + k, 0), align=size) for k in range(4)])
+        m0 = builder.fmul(builder.fadd(pa0, pa1), half)
+        m1 = builder.fmul(builder.fadd(pb0, pb1), half)
+        for h, values in enumerate(((pa0, m0, pb0, m1), (m0, pa1, m1, pb1))):
+            for k, value in enumerate(swapped(list(values))):
+                builder.store(value, cols.at(pts, 16 * c + k, h), align=size)
+            lo = hi = values[0]
+            for v in values[1:]:  # numba's min and max of several: the first of equals stays
+                lo = builder.select(builder.fcmp_ordered('<', v, lo), v, lo)
+                hi = builder.select(builder.fcmp_ordered('>', v, hi), v, hi)
+            for row, value in ((c, lo), (3 + c, hi)):
+                cols.store(builder.fpext(value, vd) if elem != ir.DoubleType() else value, boxes, row, h)
+
+
 def split_cubic_lanes(typingctx, points, dirs, box):
     """Halve each lane's bicubic (points: (3, 16, COLUMNS), columns 0..LANES-1; the low half stays
     there, the high half goes to column LANES + lane) in its direction (dirs: (LANES,) int32, 0 u,
@@ -276,30 +372,171 @@ def split_cubic_lanes(typingctx, points, dirs, box):
     return sig, codegen
 
 
-def halve_lanes(typingctx, points, dirs, box, mf, mi, lray, step, levels, sub_scale, split_mode):
-    """A halving of every lane's bicubic, its column of the lane slots (points, box, mf) into the
-    low half (in place) and the high half (column LANES + lane), as the single ray's steps make
-    it: search_steps.halving_direction (into dirs; split_mode: options.SPLIT_CODE's), subpatch.split_bounds (levels: the split's rounding per unit of magnitude), the split in
-    dirs' direction, split_intervals, the halves' widening (sub_scale: PatchInfo.sub_scale) and
-    M_DPAR (step[S_DCRIT]), and each half's slab test against its lane's ray (lray: (LANE_RAY,
-    LANES)) within step[S_START], step[S_STOP] (M_TIN, M_TOUT written). Returns bit lane where the
-    ray meets the low half, LANES + lane where it meets the high one (uint64)."""
-    if not (_is_c(points, 3, (types.float32, types.float64)) and _is_c(dirs, 1, (types.int32,))
-            and all(_is_c(a, 2, (types.float64,)) for a in (box, mf, lray, step)) and _is_c(mi, 2, (types.int32,))):
+def _make_halve(linear: bool):
+    def halve_lanes(typingctx, points, dirs, box, mf, mi, lray, step, levels, sub_scale, split_mode):
+        """A halving of every lane's bicubic, its column of the lane slots (points, box, mf) into the
+        low half (in place) and the high half (column LANES + lane), as the single ray's steps make
+        it: search_steps.halving_direction (into dirs; split_mode: options.SPLIT_CODE's), subpatch.split_bounds (levels: the split's rounding per unit of magnitude), the split in
+        dirs' direction, split_intervals, the halves' widening (sub_scale: PatchInfo.sub_scale) and
+        M_DPAR (step[S_DCRIT]), and each half's slab test against its lane's ray (lray: (LANE_RAY,
+        LANES)) within step[S_START], step[S_STOP] (M_TIN, M_TOUT written). Returns bit lane where the
+        ray meets the low half, LANES + lane where it meets the high one (uint64)."""
+        if not (_is_c(points, 3, (types.float32, types.float64)) and _is_c(dirs, 1, (types.int32,))
+                and all(_is_c(a, 2, (types.float64,)) for a in (box, mf, lray, step)) and _is_c(mi, 2, (types.int32,))):
+            return None
+        sig = types.uint64(points, dirs, box, mf, mi, lray, step, types.float64, types.float64, types.int64)
+
+        def codegen(context, builder, signature, args):
+            cols = _Columns(context, builder, signature, args)
+            double = ir.DoubleType()
+            elem = context.get_value_type(signature.args[0].dtype)
+            vd = ir.VectorType(double, LANES)
+            vi = ir.VectorType(ir.IntType(32), LANES)
+            pts, boxes, meta = cols.base(0, elem), cols.base(2, double), cols.base(3, double)
+            rays = builder.bitcast(context.make_array(signature.args[5])(context, builder, args[5]).data, vd.as_pointer())
+            steps = builder.bitcast(context.make_array(signature.args[6])(context, builder, args[6]).data,
+                                    vd.as_pointer())
+            vmin, vmax, fabs = _ops(builder, vd)
+
+            def splat(value):
+                return builder.shuffle_vector(builder.insert_element(ir.Constant(vd, ir.Undefined), value,
+                                                                     ir.IntType(32)(0)),
+                                              ir.Constant(vd, ir.Undefined), ir.Constant(vi, [0] * LANES))
+
+            def const(value):
+                return ir.Constant(vd, [ir.Constant(double, value)] * LANES)
+
+            def ray_row(k):
+                return builder.load(builder.gep(rays, [ir.IntType(32)(k)]), align=8)
+
+            def step_row(k):
+                return builder.load(builder.gep(steps, [ir.IntType(32)(k)]), align=8)
+
+            levels_v, sub_scale_v = splat(args[7]), splat(args[8])
+            # search_steps.halving_direction: split_direction's edge lengths (corners 0, 3, 12, 15 in
+            # float64), or the other direction than last time where the box did not shrink
+            all_edges = LINEAR_EDGES if linear else CUBIC_EDGES
+            corner = {k: [builder.fpext(builder.load(cols.at(pts, 16 * c + k, 0), align=4), vd)
+                          if elem != double else builder.load(cols.at(pts, 16 * c + k, 0), align=8) for c in range(3)]
+                      for edges in all_edges for edge in edges for k in edge}
+            cross = builder.icmp_signed('==', args[9], ir.Constant(ir.IntType(64), SPLIT_CROSS))
+            d = [ray_row(R_D + c) for c in range(3)]
+            lengths = []
+            for edges in all_edges:  # u edges, v edges
+                longest = const(0.0)
+                for b_k, a_k in edges:
+                    ex, ey, ez = (builder.fsub(corner[b_k][c], corner[a_k][c]) for c in range(3))
+                    cx = builder.fsub(builder.fmul(ey, d[2]), builder.fmul(ez, d[1]))
+                    cy = builder.fsub(builder.fmul(ez, d[0]), builder.fmul(ex, d[2]))
+                    cz = builder.fsub(builder.fmul(ex, d[1]), builder.fmul(ey, d[0]))
+                    ex, ey, ez = (builder.select(cross, crossed, plain) for crossed, plain in ((cx, ex), (cy, ey), (cz, ez)))
+                    length = builder.fadd(builder.fadd(builder.fmul(ex, ex), builder.fmul(ey, ey)), builder.fmul(ez, ez))
+                    longest = vmax(longest, length)
+                lengths.append(longest)
+            i32 = ir.IntType(32)
+            by_length = builder.select(builder.fcmp_ordered('>', lengths[0], lengths[1]), ir.Constant(vi, [0] * LANES),
+                                       ir.Constant(vi, [1] * LANES))
+            mis = cols.base(4, i32)
+            last = cols.load(mis, I_LAST)
+            other = builder.select(builder.icmp_signed('>=', last, ir.Constant(vi, [0] * LANES)),
+                                   builder.sub(ir.Constant(vi, [1] * LANES), last), ir.Constant(vi, [0] * LANES))
+            shrank = builder.fcmp_ordered('!=', step_row(S_SHRANK), const(0.0))
+            dirs = builder.select(shrank, by_length, other)
+            builder.store(dirs, cols.base(1, i32), align=4)
+            along_v = builder.icmp_signed('!=', dirs, ir.Constant(vi, [0] * LANES))
+            for c in range(3):  # subpatch.split_bounds, from the parent's (widened) box
+                bound = builder.fadd(cols.load(meta, M_E + c), builder.fmul(
+                    levels_v, vmax(fabs(cols.load(boxes, c)), fabs(cols.load(boxes, 3 + c)))))
+                cols.store(bound, meta, M_E + c, 1)
+                cols.store(bound, meta, M_E + c, 0)
+            (_emit_split_linear if linear else _emit_split)(cols, elem, pts, boxes, along_v)
+            u0, u1, v0, v1 = (cols.load(meta, r) for r in (M_U0, M_U1, M_V0, M_V1))  # subpatch.split_intervals
+            half = const(0.5)
+            mid_u = builder.fmul(half, builder.fadd(u0, u1))
+            mid_v = builder.fmul(half, builder.fadd(v0, v1))
+            cols.store(builder.select(along_v, u0, mid_u), meta, M_U0, 1)
+            cols.store(builder.select(along_v, u1, mid_u), meta, M_U1, 0)
+            cols.store(u1, meta, M_U1, 1)
+            cols.store(builder.select(along_v, mid_v, v0), meta, M_V0, 1)
+            cols.store(builder.select(along_v, mid_v, v1), meta, M_V1, 0)
+            cols.store(v1, meta, M_V1, 1)
+            for r in (M_OX, M_OX + 1, M_OX + 2, M_GULP):
+                cols.store(cols.load(meta, r), meta, r, 1)
+            unshared = builder.fcmp_ordered('!=', sub_scale_v, const(0.0))
+            bits = ir.Constant(ir.IntType(64), 0)
+            for h in range(2):  # search_steps.finish_halves' widening and M_DPAR, subpatch.open_box
+                corners = [cols.load(boxes, k, h) for k in range(6)]
+                mag = const(0.0)
+                for k in range(6):
+                    mag = vmax(mag, fabs(corners[k]))
+                cols.store(mag, meta, M_MAG, h)
+                sub = builder.fmul(mag, sub_scale_v)
+                widening = const(0.0)
+                for c in range(3):
+                    e = cols.load(meta, M_E + c, h)
+                    e = builder.select(unshared, builder.fadd(e, sub), e)
+                    corners[c] = builder.fsub(corners[c], e)
+                    corners[3 + c] = builder.fadd(corners[3 + c], e)
+                    widening = builder.fadd(widening, builder.fmul(const(2.0), e))
+                for k in range(6):
+                    cols.store(corners[k], boxes, k, h)
+                cols.store(widening, meta, M_W, h)
+                cols.store(builder.fadd(builder.fadd(builder.fsub(corners[3], corners[0]),
+                                                     builder.fsub(corners[4], corners[1])),
+                                        builder.fsub(corners[5], corners[2])), meta, M_D, h)
+                cols.store(step_row(S_DCRIT), meta, M_DPAR, h)
+                t_in, t_out = step_row(S_START), step_row(S_STOP)
+                fail = ir.Constant(ir.VectorType(ir.IntType(1), LANES), [0] * LANES)
+                for c in range(3):  # ray.slab_at's operations, as lanes._slab_vectors
+                    offset = cols.load(meta, M_OX + c, h)
+                    origin = ray_row(R_O + c)
+                    lo = builder.fsub(builder.fadd(corners[c], offset), origin)
+                    hi = builder.fsub(builder.fadd(corners[3 + c], offset), origin)
+                    flat = builder.fcmp_ordered('==', ray_row(R_D + c), const(0.0))
+                    outside = builder.or_(builder.fcmp_ordered('>', lo, const(0.0)), builder.fcmp_ordered('<', hi, const(0.0)))
+                    fail = builder.or_(fail, builder.and_(flat, outside))
+                    inv = ray_row(R_INV + c)
+                    a = builder.fmul(lo, inv)
+                    b = builder.fmul(hi, inv)
+                    swap = builder.fcmp_ordered('>', a, b)
+                    a, b = builder.select(swap, b, a), builder.select(swap, a, b)
+                    b = builder.fadd(b, builder.fmul(fabs(b), const(T_SLACK)))
+                    sloped = builder.not_(flat)
+                    t_in = builder.select(builder.and_(sloped, builder.fcmp_ordered('>', a, t_in)), a, t_in)
+                    t_out = builder.select(builder.and_(sloped, builder.fcmp_ordered('<', b, t_out)), b, t_out)
+                cols.store(t_in, meta, M_TIN, h)
+                cols.store(t_out, meta, M_TOUT, h)
+                meets = builder.and_(builder.not_(fail), builder.fcmp_ordered('<=', t_in, t_out))
+                met = builder.zext(builder.bitcast(meets, ir.IntType(LANES)), ir.IntType(64))
+                bits = builder.or_(bits, builder.shl(met, ir.Constant(ir.IntType(64), LANES * h)))
+            return bits
+
+        return sig, codegen
+
+    halve_lanes.__name__ = halve_lanes.__qualname__ = 'halve_lanes_linear' if linear else 'halve_lanes'
+    return halve_lanes
+
+
+def judge_lanes(typingctx, box, mf, mi, lray, step, grid0, grid1, grid2, criterion, param, max_depth,
+                shrink_factor, rational):
+    """search_steps.judge_known for every lane's current sub-patch (column lane) under the float,
+    fixed or adaptive criterion (not mantissa, whose test is the ray's: judge_known), as it judges
+    a slot: its grid box's L1 diameter (grid0..2: the leaf's grid steps) where the criteria need
+    it. Writes each lane's box measure and whether the box shrank (step[S_DCRIT], step[S_SHRANK]);
+    returns bit lane where the lane's sub-patch meets the criterion (uint64)."""
+    if not (all(_is_c(a, 2, (types.float64,)) for a in (box, mf, lray, step)) and _is_c(mi, 2, (types.int32,))):
         return None
-    sig = types.uint64(points, dirs, box, mf, mi, lray, step, types.float64, types.float64, types.int64)
+    sig = types.uint64(box, mf, mi, lray, step, types.float64, types.float64, types.float64, types.int64,
+                       types.float64, types.int64, types.float64, types.boolean)
 
     def codegen(context, builder, signature, args):
         cols = _Columns(context, builder, signature, args)
         double = ir.DoubleType()
-        elem = context.get_value_type(signature.args[0].dtype)
         vd = ir.VectorType(double, LANES)
         vi = ir.VectorType(ir.IntType(32), LANES)
-        pts, boxes, meta = cols.base(0, elem), cols.base(2, double), cols.base(3, double)
-        rays = builder.bitcast(context.make_array(signature.args[5])(context, builder, args[5]).data, vd.as_pointer())
-        steps = builder.bitcast(context.make_array(signature.args[6])(context, builder, args[6]).data,
-                                vd.as_pointer())
-        vmin, vmax, fabs = _ops(builder, vd)
+        boxes, meta, mis, rays, steps = (cols.base(0, double), cols.base(1, double), cols.base(2, ir.IntType(32)),
+                                         cols.base(3, double), cols.base(4, double))
+        vmin, vmax, _ = _ops(builder, vd)
 
         def splat(value):
             return builder.shuffle_vector(builder.insert_element(ir.Constant(vd, ir.Undefined), value,
@@ -309,109 +546,58 @@ def halve_lanes(typingctx, points, dirs, box, mf, mi, lray, step, levels, sub_sc
         def const(value):
             return ir.Constant(vd, [ir.Constant(double, value)] * LANES)
 
-        def ray_row(k):
-            return builder.load(builder.gep(rays, [ir.IntType(32)(k)]), align=8)
+        def row(ptr, k):  # (lray and step rows are LANES long: one vector a row)
+            return builder.load(builder.gep(ptr, [ir.IntType(32)(k)]), align=8)
 
-        def step_row(k):
-            return builder.load(builder.gep(steps, [ir.IntType(32)(k)]), align=8)
+        def rounded(name, value):
+            fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vd, [vd]), f'llvm.{name}.v{LANES}f64')
+            return builder.call(fn, [value])
 
-        levels_v, sub_scale_v = splat(args[7]), splat(args[8])
-        # search_steps.halving_direction: split_direction's edge lengths (corners 0, 3, 12, 15 in
-        # float64), or the other direction than last time where the box did not shrink
-        corner = {k: [builder.fpext(builder.load(cols.at(pts, 16 * c + k, 0), align=4), vd)
-                      if elem != double else builder.load(cols.at(pts, 16 * c + k, 0), align=8) for c in range(3)]
-                  for k in (0, 3, 12, 15)}
-        cross = builder.icmp_signed('==', args[9], ir.Constant(ir.IntType(64), SPLIT_CROSS))
-        d = [ray_row(R_D + c) for c in range(3)]
-        lengths = []
-        for edges in (((3, 0), (15, 12)), ((12, 0), (15, 3))):  # u edges, v edges
-            longest = const(0.0)
-            for b_k, a_k in edges:
-                ex, ey, ez = (builder.fsub(corner[b_k][c], corner[a_k][c]) for c in range(3))
-                cx = builder.fsub(builder.fmul(ey, d[2]), builder.fmul(ez, d[1]))
-                cy = builder.fsub(builder.fmul(ez, d[0]), builder.fmul(ex, d[2]))
-                cz = builder.fsub(builder.fmul(ex, d[1]), builder.fmul(ey, d[0]))
-                ex, ey, ez = (builder.select(cross, crossed, plain) for crossed, plain in ((cx, ex), (cy, ey), (cz, ez)))
-                length = builder.fadd(builder.fadd(builder.fmul(ex, ex), builder.fmul(ey, ey)), builder.fmul(ez, ez))
-                longest = vmax(longest, length)
-            lengths.append(longest)
-        i32 = ir.IntType(32)
-        by_length = builder.select(builder.fcmp_ordered('>', lengths[0], lengths[1]), ir.Constant(vi, [0] * LANES),
-                                   ir.Constant(vi, [1] * LANES))
-        mis = cols.base(4, i32)
-        last = cols.load(mis, I_LAST)
-        other = builder.select(builder.icmp_signed('>=', last, ir.Constant(vi, [0] * LANES)),
-                               builder.sub(ir.Constant(vi, [1] * LANES), last), ir.Constant(vi, [0] * LANES))
-        shrank = builder.fcmp_ordered('!=', step_row(S_SHRANK), const(0.0))
-        dirs = builder.select(shrank, by_length, other)
-        builder.store(dirs, cols.base(1, i32), align=4)
-        along_v = builder.icmp_signed('!=', dirs, ir.Constant(vi, [0] * LANES))
-        for c in range(3):  # subpatch.split_bounds, from the parent's (widened) box
-            bound = builder.fadd(cols.load(meta, M_E + c), builder.fmul(
-                levels_v, vmax(fabs(cols.load(boxes, c)), fabs(cols.load(boxes, 3 + c)))))
-            cols.store(bound, meta, M_E + c, 1)
-            cols.store(bound, meta, M_E + c, 0)
-        _emit_split(cols, elem, pts, boxes, along_v)
-        u0, u1, v0, v1 = (cols.load(meta, r) for r in (M_U0, M_U1, M_V0, M_V1))  # subpatch.split_intervals
-        half = const(0.5)
-        mid_u = builder.fmul(half, builder.fadd(u0, u1))
-        mid_v = builder.fmul(half, builder.fadd(v0, v1))
-        cols.store(builder.select(along_v, u0, mid_u), meta, M_U0, 1)
-        cols.store(builder.select(along_v, u1, mid_u), meta, M_U1, 0)
-        cols.store(u1, meta, M_U1, 1)
-        cols.store(builder.select(along_v, mid_v, v0), meta, M_V0, 1)
-        cols.store(builder.select(along_v, mid_v, v1), meta, M_V1, 0)
-        cols.store(v1, meta, M_V1, 1)
-        for r in (M_OX, M_OX + 1, M_OX + 2, M_GULP):
-            cols.store(cols.load(meta, r), meta, r, 1)
-        unshared = builder.fcmp_ordered('!=', sub_scale_v, const(0.0))
-        bits = ir.Constant(ir.IntType(64), 0)
-        for h in range(2):  # search_steps.finish_halves' widening and M_DPAR, subpatch.open_box
-            corners = [cols.load(boxes, k, h) for k in range(6)]
-            mag = const(0.0)
-            for k in range(6):
-                mag = vmax(mag, fabs(corners[k]))
-            cols.store(mag, meta, M_MAG, h)
-            sub = builder.fmul(mag, sub_scale_v)
-            widening = const(0.0)
-            for c in range(3):
-                e = cols.load(meta, M_E + c, h)
-                e = builder.select(unshared, builder.fadd(e, sub), e)
-                corners[c] = builder.fsub(corners[c], e)
-                corners[3 + c] = builder.fadd(corners[3 + c], e)
-                widening = builder.fadd(widening, builder.fmul(const(2.0), e))
-            for k in range(6):
-                cols.store(corners[k], boxes, k, h)
-            cols.store(widening, meta, M_W, h)
-            cols.store(builder.fadd(builder.fadd(builder.fsub(corners[3], corners[0]),
-                                                 builder.fsub(corners[4], corners[1])),
-                                    builder.fsub(corners[5], corners[2])), meta, M_D, h)
-            cols.store(step_row(S_DCRIT), meta, M_DPAR, h)
-            t_in, t_out = step_row(S_START), step_row(S_STOP)
-            fail = ir.Constant(ir.VectorType(ir.IntType(1), LANES), [0] * LANES)
-            for c in range(3):  # ray.slab_at's operations, as lanes._slab_vectors
-                offset = cols.load(meta, M_OX + c, h)
-                origin = ray_row(R_O + c)
-                lo = builder.fsub(builder.fadd(corners[c], offset), origin)
-                hi = builder.fsub(builder.fadd(corners[3 + c], offset), origin)
-                flat = builder.fcmp_ordered('==', ray_row(R_D + c), const(0.0))
-                outside = builder.or_(builder.fcmp_ordered('>', lo, const(0.0)), builder.fcmp_ordered('<', hi, const(0.0)))
-                fail = builder.or_(fail, builder.and_(flat, outside))
-                inv = ray_row(R_INV + c)
-                a = builder.fmul(lo, inv)
-                b = builder.fmul(hi, inv)
-                swap = builder.fcmp_ordered('>', a, b)
-                a, b = builder.select(swap, b, a), builder.select(swap, a, b)
-                b = builder.fadd(b, builder.fmul(fabs(b), const(T_SLACK)))
-                sloped = builder.not_(flat)
-                t_in = builder.select(builder.and_(sloped, builder.fcmp_ordered('>', a, t_in)), a, t_in)
-                t_out = builder.select(builder.and_(sloped, builder.fcmp_ordered('<', b, t_out)), b, t_out)
-            cols.store(t_in, meta, M_TIN, h)
-            cols.store(t_out, meta, M_TOUT, h)
-            meets = builder.and_(builder.not_(fail), builder.fcmp_ordered('<=', t_in, t_out))
-            met = builder.zext(builder.bitcast(meets, ir.IntType(LANES)), ir.IntType(64))
-            bits = builder.or_(bits, builder.shl(met, ir.Constant(ir.IntType(64), LANES * h)))
-        return bits
+        criterion, param = args[8], splat(args[9])
+        is_fixed = builder.icmp_signed('==', criterion, ir.Constant(ir.IntType(64), FIXED))
+        is_adaptive = builder.icmp_signed('==', criterion, ir.Constant(ir.IntType(64), ADAPTIVE))
+        d = cols.load(meta, M_D)
+        box_limit = builder.fmul(const(GRID_PREFILTER), cols.load(meta, M_GULP))
+        box_limit = builder.select(is_fixed, vmax(box_limit, param), box_limit)
+        detail = builder.fadd(row(rays, LR_T0), builder.fmul(row(rays, LR_DT), cols.load(meta, M_TIN)))
+        limit = builder.select(is_adaptive, vmax(box_limit, detail), box_limit)
+        total = const(0.0)
+        for c in range(3):  # subpatch.grid_l1
+            offset = cols.load(meta, M_OX + c)
+            lo = builder.fadd(cols.load(boxes, c), offset)
+            hi = builder.fadd(cols.load(boxes, 3 + c), offset)
+            g = splat(args[5 + c])
+            inv = builder.fdiv(const(1.0), g)
+            snapped = builder.fsub(builder.fmul(rounded('ceil', builder.fmul(hi, inv)), g),
+                                   builder.fmul(rounded('floor', builder.fmul(lo, inv)), g))
+            on_grid = builder.fcmp_ordered('>', args[5 + c], ir.Constant(double, 0.0))
+            total = builder.fadd(total, builder.select(on_grid, snapped, builder.fsub(hi, lo)))
+        d_crit = builder.select(builder.fcmp_ordered('<=', d, limit), total, d)
+        d_box = builder.select(builder.fcmp_ordered('<=', d, box_limit), total, d)
+        false = ir.Constant(ir.VectorType(ir.IntType(1), LANES), [0] * LANES)
+        depth = cols.load(mis, I_DEPTH)
+        max_depth = builder.trunc(args[10], ir.IntType(32))
+        max_depth_v = builder.shuffle_vector(builder.insert_element(ir.Constant(vi, ir.Undefined), max_depth,
+                                                                    ir.IntType(32)(0)),
+                                             ir.Constant(vi, ir.Undefined), ir.Constant(vi, [0] * LANES))
+        stop = builder.icmp_signed('>=', depth, max_depth_v)
+        stop = builder.or_(stop, builder.and_(builder.fcmp_ordered('<=', d_crit, param),
+                                              builder.select(is_fixed, builder.not_(false), false)))
+        stop = builder.or_(stop, builder.and_(builder.fcmp_ordered('<=', d_crit, detail),
+                                              builder.select(is_adaptive, builder.not_(false), false)))
+        shrank = builder.and_(builder.fcmp_ordered('<', d_box, builder.fmul(cols.load(meta, M_DPAR), splat(args[11]))),
+                              builder.fcmp_ordered('>', d, builder.fmul(const(1.0625), cols.load(meta, M_W))))
+        spent = builder.or_(builder.fcmp_ordered('==', cols.load(meta, M_U0), cols.load(meta, M_U1)),
+                            builder.fcmp_ordered('==', cols.load(meta, M_V0), cols.load(meta, M_V1)))
+        stalled = builder.icmp_signed('==', cols.load(mis, I_STALLED), ir.Constant(vi, [1] * LANES))
+        rational = builder.select(args[12], builder.not_(false), false)
+        exempt = builder.and_(rational, builder.fcmp_ordered('>', d, limit))
+        stop = builder.or_(builder.or_(stop, spent),
+                           builder.and_(builder.and_(builder.not_(shrank), stalled), builder.not_(exempt)))
+        builder.store(d_box, builder.gep(steps, [ir.IntType(32)(S_DCRIT)]), align=8)
+        builder.store(builder.select(shrank, const(1.0), const(0.0)), builder.gep(steps, [ir.IntType(32)(S_SHRANK)]),
+                      align=8)
+        return builder.zext(builder.bitcast(stop, ir.IntType(LANES)), ir.IntType(64))
 
     return sig, codegen
 
@@ -440,8 +626,12 @@ def keep_high_lanes(typingctx, points, box, mf, mi, take):
 if config.DISABLE_JIT:
     split_cubic_lanes = split_cubic_lanes_python  # noqa: F811
     halve_lanes = halve_lanes_python  # noqa: F811
+    halve_lanes_linear = functools.partial(halve_lanes_python, linear=True)
+    judge_lanes = judge_lanes_python  # noqa: F811
     keep_high_lanes = keep_high_lanes_python  # noqa: F811
 else:
     split_cubic_lanes = intrinsic(split_cubic_lanes)  # noqa: F811
-    halve_lanes = intrinsic(halve_lanes)  # noqa: F811
+    halve_lanes = intrinsic(_make_halve(False))
+    halve_lanes_linear = intrinsic(_make_halve(True))
+    judge_lanes = intrinsic(judge_lanes)  # noqa: F811
     keep_high_lanes = intrinsic(keep_high_lanes)  # noqa: F811
