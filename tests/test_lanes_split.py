@@ -95,7 +95,7 @@ from tracer import lanes_split as LS  # noqa: E402
 from tracer.ray import R_D, R_DT, R_INV, R_O, R_REACH, R_T0, RAY_LEN  # noqa: E402
 from tracer.records import PatchInfo, Query  # noqa: E402
 from tracer.search_steps import finish_halves, halving_direction, judge_known  # noqa: E402
-from tracer.subpatch import (I_DEPTH, I_LAST, I_STALLED, M_D, M_DPAR, M_E, M_GULP, M_OX, M_TIN, M_TOUT, M_U0,  # noqa: E402
+from tracer.subpatch import (I_DEPTH, I_LAST, I_STALLED, I_TRIM, M_D, M_DPAR, M_E, M_GULP, M_OX, M_TIN, M_TOUT, M_U0,  # noqa: E402
                              M_U1, M_V0, M_V1, M_W, MF_LEN, MI_LEN, open_box, split)
 
 Grids = namedtuple("Grids", "grid frame")
@@ -108,13 +108,14 @@ def _slot_halvings(buf, box, mf, mi, rays, pa, q, dcrit, shrank, start, stop, me
     for lane in range(LANES):
         a, b = 2 * lane, 2 * lane + 1
         ray = rays[lane]
+        mf[a, M_TIN] = start[lane]
+        mf[a, M_TOUT] = stop[lane]
         direction = halving_direction(_slots(buf, box, mf, mi), a, pa, ray, q, shrank[lane] != 0.0)
         sl = _slots(buf, box, mf, mi)
         split(sl, a, b, pa, direction, False)
         finish_halves(sl, a, b, pa, dcrit[lane], shrank[lane] != 0.0, direction)
         met[lane] = open_box(sl, a, ray, start[lane], stop[lane], hit, 0)[1]
         met[LANES + lane] = open_box(sl, b, ray, start[lane], stop[lane], hit, 0)[1]
-        mi[a, I_LAST] = direction
 
 
 SlotsLike = namedtuple("SlotsLike", "buf box mf mi")
@@ -184,6 +185,7 @@ def _random_lanes(rng, pa, dtype):
         mi[s, I_DEPTH] = rng.integers(0, 70)
         mi[s, I_STALLED] = rng.integers(0, 2)
         mi[s, I_LAST] = rng.integers(-1, 2)
+        mi[s, I_TRIM] = rng.integers(0, 2)
         d = rng.normal(size=3)
         d[rng.random(3) < 0.15] = 0.0
         rays[lane, R_O:R_O + 3] = rng.normal(size=3) * 3.0
@@ -228,15 +230,19 @@ def test_halve_lanes_is_the_single_rays_halving(linear, dtype, split_mode):
             step = np.zeros((LS.STEP_LEN, LANES))
             step[LS.S_DCRIT] = rng.random(LANES)
             step[LS.S_SHRANK] = rng.integers(0, 2, LANES)
-            step[LS.S_START] = np.where(rng.random(LANES) < 0.3, -np.inf, rng.normal(size=LANES))
-            step[LS.S_STOP] = np.where(rng.random(LANES) < 0.5, np.inf, rng.normal(size=LANES) + 3.0)
+            start = np.where(rng.random(LANES) < 0.3, -np.inf, rng.normal(size=LANES))
+            stop = np.where(rng.random(LANES) < 0.5, np.inf, rng.normal(size=LANES) + 3.0)
+            lmf[M_TIN, :LANES] = start
+            lmf[M_TOUT, :LANES] = stop
             met = np.zeros(COLUMNS_SLOTS, np.bool_)
             _slot_halvings(buf, box, mf, mi, rays, pa, q, step[LS.S_DCRIT].copy(), step[LS.S_SHRANK].copy(),
-                           step[LS.S_START].copy(), step[LS.S_STOP].copy(), met)
+                           start, stop, met)
             dirs = np.zeros(LANES, np.int32)
             bits = int(version(points, dirs, lbox, lmf, lmi, lray, step, pa.m * pa.round_unit, pa.sub_scale,
                                split_mode, linear))
             assert dirs.tolist() == mi[0::2, I_LAST].tolist(), f"case {case}: directions"
+            assert lmi[:, :LANES].tobytes() == mi[0::2].T.tobytes(), f"case {case}: low halves' places"
+            assert lmi[:, LANES:].tobytes() == mi[1::2].T.tobytes(), f"case {case}: high halves' places"
             for lane in range(LANES):
                 for h in range(2):
                     s, column = 2 * lane + h, LANES * h + lane

@@ -21,13 +21,13 @@ from .bundle_steps import ONE, ZERO, bit, lane_limit, lowest_bit
 from .hull import hull_behind
 from .jit import njit
 from .lanes import L_HIT
-from .lanes_split import (COLUMNS, LANE_RAY, LANES, LR_DT, LR_T0, S_DCRIT, S_SHRANK, S_START, S_STOP, STEP_LEN, halve_lanes,
+from .lanes_split import (COLUMNS, LANE_RAY, LANES, LR_DT, LR_T0, S_DCRIT, S_SHRANK, STEP_LEN, halve_lanes,
                           halve_lanes_linear, judge_lanes, keep_high_lanes)
 from .ray import R_D, R_DT, R_INV, R_O, R_REACH, R_T0, R_TMIN, before_best
 from .records import C_EFFORT, Slots
 from .search_steps import (MANTISSA, ahead, hull_accepts, judge_known, near_and_far, order_halves, report,
                            tighten, tightening)
-from .subpatch import I_DEPTH, I_LAST, I_STALLED, I_TRIM, MF_LEN, MI_LEN, M_TIN, M_TOUT, M_U0, M_V0, patch_info
+from .subpatch import MF_LEN, MI_LEN, M_TIN, M_TOUT, M_U0, M_V0, patch_info
 
 # The lane slots: points (3, 16, COLUMNS) in the slots' dtype, box (6, COLUMNS), mf (MF_LEN,
 # COLUMNS), mi (MI_LEN, COLUMNS) int32 (lanes_split: column j < LANES lane j's current sub-patch,
@@ -190,8 +190,6 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
                 al.current[lane] = 0
                 continue
             br.counts[r, C_EFFORT] += 2
-            al.step[S_START, lane] = al.mf[M_TIN, lane]
-            al.step[S_STOP, lane] = al.mf[M_TOUT, lane]
             if tightening(ls, lane, pa) != 0:  # (rare) on a copy in a working slot
                 spare = free[nfree - 1]
                 to_slot(al, lane, sl, spare, pa.count)
@@ -217,13 +215,6 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
             a = lane
             b = LANES + lane
             direction = al.dirs[lane]
-            stalled = 0 if al.step[S_SHRANK, lane] != 0.0 else 1  # (search_steps.finish_halves)
-            depth = al.mi[I_DEPTH, a] + 1
-            al.mi[I_TRIM, b] = al.mi[I_TRIM, a]
-            for column in (a, b):
-                al.mi[I_DEPTH, column] = depth
-                al.mi[I_STALLED, column] = stalled
-                al.mi[I_LAST, column] = direction
             spare = free[nfree - 1]
             alive_a, met_a = _verdict(al, a, pa, sl, spare, lr, hit, (met >> np.uint64(a)) & ONE)
             alive_b, met_b = _verdict(al, b, pa, sl, spare, lr, hit, (met >> np.uint64(b)) & ONE)

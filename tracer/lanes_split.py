@@ -26,17 +26,17 @@ from numba.extending import intrinsic
 
 from .ray import R_D, R_INV, R_O, T_SLACK
 from .search_steps import ADAPTIVE, FIXED, GRID_PREFILTER
-from .subpatch import I_DEPTH, I_LAST, I_STALLED, SPLIT_CROSS, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, MF_LEN, MI_LEN
+from .subpatch import I_DEPTH, I_LAST, I_STALLED, I_TRIM, SPLIT_CROSS, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, MF_LEN, MI_LEN
 
 LANES = 8
 COLUMNS = 2 * LANES
 # Rows of the lanes' rays (LANE_RAY, LANES): origin in the patch's frame xyz, direction xyz,
 # 1 / direction xyz; and of a halving's per-lane inputs (STEP_LEN, LANES): the parent's criterion
-# diameter (the halves' M_DPAR), whether its box shrank, its slab interval.
+# diameter (the halves' M_DPAR) and whether its box shrank (1.0 or 0.0).
 LR_T0, LR_DT = 9, 10  # (and the adaptive criterion's threshold of detail at t = 0 and its growth)
 LANE_RAY = 11
-S_DCRIT, S_SHRANK, S_START, S_STOP = 0, 1, 2, 3
-STEP_LEN = 4
+S_DCRIT, S_SHRANK = 0, 1
+STEP_LEN = 2
 
 
 # The corners split_direction measures, as (u edges, v edges), each edge (end, start) point indices.
@@ -179,6 +179,12 @@ def halve_lanes_python(points, dirs, box, mf, mi, lray, step, levels, sub_scale,
     mf[M_V0, high] = np.where(along_v, mid_v, mf[M_V0, high])
     for r in (M_OX, M_OX + 1, M_OX + 2, M_GULP):
         mf[r, high] = mf[r, low]
+    start, stop = mf[M_TIN, low].copy(), mf[M_TOUT, low].copy()  # the parent's interval
+    mi[I_TRIM, high] = mi[I_TRIM, low]  # search_steps.finish_halves' places in the tree
+    for column in (high, low):
+        mi[I_DEPTH, column] = mi[I_DEPTH, low] + 1
+        mi[I_STALLED, column] = np.where(step[S_SHRANK] != 0.0, 0, 1)
+        mi[I_LAST, column] = dirs
     bits = 0
     for h, column in enumerate((low, high)):  # widen, M_DPAR, open_box
         mag = np.zeros(LANES)
@@ -198,7 +204,7 @@ def halve_lanes_python(points, dirs, box, mf, mi, lray, step, levels, sub_scale,
         mf[M_DPAR, column] = step[S_DCRIT]
         lo = [box[c, column] + mf[M_OX + c, column] for c in range(3)]
         hi = [box[3 + c, column] + mf[M_OX + c, column] for c in range(3)]
-        t_in, t_out, meets = _slab_python(lo, hi, lray, step[S_START].copy(), step[S_STOP].copy())
+        t_in, t_out, meets = _slab_python(lo, hi, lray, start, stop)
         mf[M_TIN, column] = t_in
         mf[M_TOUT, column] = t_out
         for lane in range(LANES):
@@ -378,9 +384,10 @@ def _make_halve(linear: bool):
         low half (in place) and the high half (column LANES + lane), as the single ray's steps make
         it: search_steps.halving_direction (into dirs; split_mode: options.SPLIT_CODE's), subpatch.split_bounds (levels: the split's rounding per unit of magnitude), the split in
         dirs' direction, split_intervals, the halves' widening (sub_scale: PatchInfo.sub_scale) and
-        M_DPAR (step[S_DCRIT]), and each half's slab test against its lane's ray (lray: (LANE_RAY,
-        LANES)) within step[S_START], step[S_STOP] (M_TIN, M_TOUT written). Returns bit lane where the
-        ray meets the low half, LANES + lane where it meets the high one (uint64)."""
+        M_DPAR (step[S_DCRIT]), their depth, stall flag (step[S_SHRANK]), direction and trim state
+        (mi), and each half's slab test against its lane's ray (lray: (LANE_RAY, LANES)) within the
+        parent's interval (M_TIN, M_TOUT, then the halves'). Returns bit lane where the ray meets
+        the low half, LANES + lane where it meets the high one (uint64)."""
         if not (_is_c(points, 3, (types.float32, types.float64)) and _is_c(dirs, 1, (types.int32,))
                 and all(_is_c(a, 2, (types.float64,)) for a in (box, mf, lray, step)) and _is_c(mi, 2, (types.int32,))):
             return None
@@ -462,6 +469,15 @@ def _make_halve(linear: bool):
             cols.store(v1, meta, M_V1, 1)
             for r in (M_OX, M_OX + 1, M_OX + 2, M_GULP):
                 cols.store(cols.load(meta, r), meta, r, 1)
+            start, stop = cols.load(meta, M_TIN), cols.load(meta, M_TOUT)  # the parent's interval
+            mis = cols.base(4, i32)  # search_steps.finish_halves' places in the tree
+            cols.store(cols.load(mis, I_TRIM), mis, I_TRIM, 1)
+            depth = builder.add(cols.load(mis, I_DEPTH), ir.Constant(vi, [1] * LANES))
+            stalled = builder.select(shrank, ir.Constant(vi, [0] * LANES), ir.Constant(vi, [1] * LANES))
+            for h in range(2):
+                cols.store(depth, mis, I_DEPTH, h)
+                cols.store(stalled, mis, I_STALLED, h)
+                cols.store(dirs, mis, I_LAST, h)
             unshared = builder.fcmp_ordered('!=', sub_scale_v, const(0.0))
             bits = ir.Constant(ir.IntType(64), 0)
             for h in range(2):  # search_steps.finish_halves' widening and M_DPAR, subpatch.open_box
@@ -485,7 +501,7 @@ def _make_halve(linear: bool):
                                                      builder.fsub(corners[4], corners[1])),
                                         builder.fsub(corners[5], corners[2])), meta, M_D, h)
                 cols.store(step_row(S_DCRIT), meta, M_DPAR, h)
-                t_in, t_out = step_row(S_START), step_row(S_STOP)
+                t_in, t_out = start, stop
                 fail = ir.Constant(ir.VectorType(ir.IntType(1), LANES), [0] * LANES)
                 for c in range(3):  # ray.slab_at's operations, as lanes._slab_vectors
                     offset = cols.load(meta, M_OX + c, h)
