@@ -33,11 +33,12 @@ from .subpatch import MF_LEN, MI_LEN, M_TIN, M_TOUT, M_U0, M_V0, patch_info
 # COLUMNS), mi (MI_LEN, COLUMNS) int32 (lanes_split: column j < LANES lane j's current sub-patch,
 # LANES + j its high half after a halving), and the same seen as slots (points_s (COLUMNS, 3, 16),
 # box_s (COLUMNS, 6), ...: slot j is column j), made in numpy (numba's transpose with axes needs its
-# runtime). dirs (LANES,) int32: each lane's halving direction. ray (LANES,) int64: the bundle ray
-# in each lane (-1 none), lray (LANE_RAY, LANES) its origin, direction and inverse direction in the
+# runtime). dirs (LANES,) int32: each lane's halving direction. ray (LANES,) uint64: the bundle ray
+# in each lane (NO_RAY: none), lray (LANE_RAY, LANES) its origin, direction and inverse direction in the
 # patch's frame; current (LANES,) int64: 1 where the lane holds a sub-patch to go on with. stack
 # (LANES, S) uint32: each lane's stack of working slots (far halves it pushed), top (LANES,) its
 # height. step (STEP_LEN, LANES): a halving's inputs.
+NO_RAY = np.uint64(2 ** 64 - 1)  # a lane without a ray
 AloneLanes = namedtuple("AloneLanes", "points box mf mi points_s box_s mf_s mi_s dirs ray lray current stack top "
                                       "step")
 
@@ -47,7 +48,7 @@ def alone_lanes(slots: int, dtype) -> AloneLanes:
     points, box = np.zeros((3, 16, COLUMNS), dtype), np.zeros((6, COLUMNS))
     mf, mi = np.zeros((MF_LEN, COLUMNS)), np.zeros((MI_LEN, COLUMNS), np.int32)
     return AloneLanes(points, box, mf, mi, points.transpose(2, 0, 1), box.T, mf.T, mi.T, np.zeros(LANES, np.int32),
-                      np.full(LANES, -1), np.zeros((LANE_RAY, LANES)), np.zeros(LANES, np.int64),
+                      np.full(LANES, NO_RAY), np.zeros((LANE_RAY, LANES)), np.zeros(LANES, np.int64),
                       np.zeros((LANES, slots), np.uint32), np.zeros(LANES, np.int64), np.zeros((STEP_LEN, LANES)))
 
 
@@ -122,20 +123,21 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
     free = br.free
     queue = waiting
     for lane in range(LANES):
-        al.ray[lane] = -1
+        al.ray[lane] = NO_RAY
         al.current[lane] = 0
         al.top[lane] = 0
     mantissa = q.criterion == MANTISSA
     grid = lv.grid
     while True:
         have = ZERO
-        for lane in range(LANES):  # every lane to its next sub-patch still ahead, or out of rays
+        for k in range(LANES):  # every lane to its next sub-patch still ahead, or out of rays
+            lane = np.uint64(k)  # (unsigned indices: no negative-index fix-ups)
             while True:
                 r = al.ray[lane]
-                if r < 0:
+                if r == NO_RAY:
                     if queue == ZERO:
                         break
-                    r = lowest_bit(queue)
+                    r = np.uint64(lowest_bit(queue))
                     queue &= queue - ONE
                     al.ray[lane] = r
                     _take_ray(al, lane, br.lrays[r])
@@ -147,7 +149,7 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
                 elif al.current[lane] == 0:
                     if al.top[lane] == 0:  # the ray's search is over
                         br.lanes[L_HIT, r] = lane_limit(br.hits[r], pa.p)
-                        al.ray[lane] = -1
+                        al.ray[lane] = NO_RAY
                         continue
                     al.top[lane] -= 1
                     s = al.stack[lane, al.top[lane]]
@@ -165,7 +167,7 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
             stop = ZERO
             m = have
             while m != ZERO:
-                lane = lowest_bit(m)
+                lane = np.uint64(lowest_bit(m))
                 m &= m - ONE
                 stopped, d_crit, shrank, _ = judge_known(ls, lane, pa, lv, br.lrays[al.ray[lane]], q, -1.0)
                 al.step[S_DCRIT, lane] = d_crit
@@ -178,7 +180,7 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
         ready = ZERO
         m = have
         while m != ZERO:
-            lane = lowest_bit(m)
+            lane = np.uint64(lowest_bit(m))
             m &= m - ONE
             r = al.ray[lane]
             if (stop >> np.uint64(lane)) & ONE:
@@ -207,13 +209,13 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
         take = ZERO
         m = ready
         while m != ZERO:
-            lane = lowest_bit(m)
+            lane = np.uint64(lowest_bit(m))
             m &= m - ONE
             r = al.ray[lane]
             hit = br.hits[r]
             lr = br.lrays[r]
             a = lane
-            b = LANES + lane
+            b = np.uint64(LANES) + lane
             direction = al.dirs[lane]
             spare = free[nfree - 1]
             alive_a, met_a = _verdict(al, a, pa, sl, spare, lr, hit, (met >> np.uint64(a)) & ONE)
@@ -235,9 +237,8 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
                 near = a if near == spare_a else b
             else:
                 far, near, alive_far, alive_near = order_halves(ls, a, b, alive_a, alive_b)
-            kept = near if alive_near else (far if alive_far else -1)
-            if kept == b:
+            if (near == b) if alive_near else (alive_far and far == b):  # the kept half is the high one
                 take |= bit(lane)
-            al.current[lane] = 1 if kept >= 0 else 0
+            al.current[lane] = 1 if (alive_near or alive_far) else 0
         if take != ZERO:
             keep_high_lanes(al.points, al.box, al.mf, al.mi, take)
