@@ -6,9 +6,8 @@ a ray's search is independent of the others'. Here eight of them run side by sid
 lane: a lane's current sub-patch is a column of the lane slots (AloneLanes), the halving of all
 eight is one pass of vector code (lanes_split), and the other steps are the single ray's own
 functions, run lane by lane on the lane slots seen as slots (lane_slots: column j is slot j; 0..7
-the lanes' current sub-patches, 8..15 their high halves). The steps that read control points
-through the slots' vector code (hull tests, tightening, a pushed half) work on a copy in a
-working slot. Each lane makes its ray's steps in _solo_search's order, on its own stack (the far
+the lanes' current sub-patches, 8..15 their high halves); tightening and a pushed half work on a
+copy in a working slot. Each lane makes its ray's steps in _solo_search's order, on its own stack (the far
 half on it, the near one on at once), so every box, hit and counter is the same.
 """
 from __future__ import annotations
@@ -98,17 +97,15 @@ def _take_ray(al, lane, lr):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _verdict(al, column, pa, sl, spare, ray, hit, met):
+def _verdict(al, ls, column, pa, ray, hit, met):
     """search_steps.open_slot's verdict on a column halve_lanes slab-tested (met: 1 where the ray
     meets its box): (alive, met), 1 or 0."""
     ok = met != 0
     t_in = al.mf[M_TIN, column]
     alive = ok and al.mf[M_TOUT, column] >= ray[R_REACH] and before_best(t_in, al.mf[M_U0, column],
                                                                           al.mf[M_V0, column], hit, pa.p)
-    if ok and t_in <= ray[R_TMIN]:  # a box holding the origin (rare): the hull test, on a copy
-        to_slot(al, column, sl, spare, pa.count)
-        if hull_behind(sl, spare, pa, ray):
-            alive = ok = False
+    if ok and t_in <= ray[R_TMIN] and hull_behind(ls, column, pa, ray):  # a box holding the origin (rare)
+        alive = ok = False
     return 1 if alive else 0, 1 if ok else 0
 
 
@@ -184,11 +181,9 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
             m &= m - ONE
             r = al.ray[lane]
             if (stop >> np.uint64(lane)) & ONE:
-                spare = free[nfree - 1]
-                to_slot(al, lane, sl, spare, pa.count)
                 lr = br.lrays[r]
-                if hull_accepts(sl, spare, pa, lv, lr, q):
-                    report(br.hits[r], sl, spare, pa, lv)
+                if hull_accepts(ls, lane, pa, lv, lr, q):
+                    report(br.hits[r], ls, lane, pa, lv)
                 al.current[lane] = 0
                 continue
             br.counts[r, C_EFFORT] += 2
@@ -217,24 +212,15 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
             a = lane
             b = np.uint64(LANES) + lane
             direction = al.dirs[lane]
-            spare = free[nfree - 1]
-            alive_a, met_a = _verdict(al, a, pa, sl, spare, lr, hit, (met >> np.uint64(a)) & ONE)
-            alive_b, met_b = _verdict(al, b, pa, sl, spare, lr, hit, (met >> np.uint64(b)) & ONE)
-            if (met_a & met_b) != 0 and (alive_a | alive_b) != 0:  # the hull tests, on copies
-                spare_a = free[nfree - 1]
-                spare_b = free[nfree - 2]
-                to_slot(al, a, sl, spare_a, pa.count)
-                to_slot(al, b, sl, spare_b, pa.count)
-                far, near, alive_far, alive_near, _ = near_and_far(sl, spare_a, spare_b, pa, lr, direction, alive_a,
-                                                                   alive_b, 1)
-                if alive_far and alive_near:  # the far half waits on the lane's stack, in its copy
-                    if far == spare_b:  # (taken from the free slots; spare_a stays free)
-                        free[nfree - 2] = spare_a
+            alive_a, met_a = _verdict(al, ls, a, pa, lr, hit, (met >> np.uint64(a)) & ONE)
+            alive_b, met_b = _verdict(al, ls, b, pa, lr, hit, (met >> np.uint64(b)) & ONE)
+            if (met_a & met_b) != 0 and (alive_a | alive_b) != 0:  # the hull tests
+                far, near, alive_far, alive_near, _ = near_and_far(ls, a, b, pa, lr, direction, alive_a, alive_b, 1)
+                if alive_far and alive_near:  # the far half waits on the lane's stack, in a working slot
                     nfree -= 1
-                    al.stack[lane, al.top[lane]] = far
+                    to_slot(al, far, sl, free[nfree], pa.count)
+                    al.stack[lane, al.top[lane]] = free[nfree]
                     al.top[lane] += 1
-                far = a if far == spare_a else b
-                near = a if near == spare_a else b
             else:
                 far, near, alive_far, alive_near = order_halves(ls, a, b, alive_a, alive_b)
             if (near == b) if alive_near else (alive_far and far == b):  # the kept half is the high one

@@ -208,12 +208,21 @@ def _reduce_lanes(builder, op, vector, lanes):
 
 
 def _row16(context, builder, arr_ty, arr_v, indices):
-    """The 16 values of arr from indices on (the last index's axis), as a 16-lane float64 vector."""
+    """The 16 values of arr from indices on (the last index's axis), as a 16-lane float64 vector
+    (one load where the array is C-contiguous, else one a value: bundle_alone's lane slots)."""
     arr = context.make_array(arr_ty)(context, builder, arr_v)
     elem = context.get_value_type(arr_ty.dtype)
-    ptr = cgutils.get_item_pointer2(context, builder, arr.data, cgutils.unpack_tuple(builder, arr.shape),
-                                    cgutils.unpack_tuple(builder, arr.strides), arr_ty.layout, indices)
-    row = builder.load(builder.bitcast(ptr, ir.VectorType(elem, 16).as_pointer()), align=context.get_abi_sizeof(elem))
+    shape, strides = cgutils.unpack_tuple(builder, arr.shape), cgutils.unpack_tuple(builder, arr.strides)
+    if arr_ty.layout == 'C':
+        ptr = cgutils.get_item_pointer2(context, builder, arr.data, shape, strides, arr_ty.layout, indices)
+        row = builder.load(builder.bitcast(ptr, ir.VectorType(elem, 16).as_pointer()),
+                           align=context.get_abi_sizeof(elem))
+    else:
+        row = ir.Constant(ir.VectorType(elem, 16), ir.Undefined)
+        for k in range(16):
+            at = indices[:-1] + [builder.add(indices[-1], context.get_constant(types.intp, k))]
+            ptr = cgutils.get_item_pointer2(context, builder, arr.data, shape, strides, arr_ty.layout, at)
+            row = builder.insert_element(row, builder.load(ptr), ir.IntType(32)(k))
     if elem != ir.DoubleType():
         row = builder.fpext(row, ir.VectorType(ir.DoubleType(), 16))
     return row
@@ -221,7 +230,7 @@ def _row16(context, builder, arr_ty, arr_v, indices):
 
 def dist_range_cubic(typingctx, buf, s, n0, n1, n2):
     """(least, greatest) of x n0 + y n1 + z n2 over the 16 control points of slot s, float64."""
-    if not (isinstance(buf, types.Array) and buf.ndim == 3 and buf.layout == 'C'
+    if not (isinstance(buf, types.Array) and buf.ndim == 3 and buf.layout in ('C', 'A')
             and buf.dtype in (types.float32, types.float64)):
         return None
     sig = types.UniTuple(types.float64, 2)(buf, s, types.float64, types.float64, types.float64)
