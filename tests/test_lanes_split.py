@@ -94,8 +94,8 @@ from collections import namedtuple  # noqa: E402
 from tracer import lanes_split as LS  # noqa: E402
 from tracer.ray import R_D, R_DT, R_INV, R_O, R_REACH, R_T0, RAY_LEN  # noqa: E402
 from tracer.records import PatchInfo, Query  # noqa: E402
-from tracer.search_steps import finish_halves, halving_direction, judge_known  # noqa: E402
-from tracer.subpatch import (I_DEPTH, I_LAST, I_STALLED, I_TRIM, M_D, M_DPAR, M_E, M_GULP, M_OX, M_TIN, M_TOUT, M_U0,  # noqa: E402
+from tracer.search_steps import finish_halves, halving_direction, judge_known, tightening  # noqa: E402
+from tracer.subpatch import (I_DEPTH, I_LAST, I_STALLED, I_TRIM, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN, M_TOUT, M_U0,  # noqa: E402
                              M_U1, M_V0, M_V1, M_W, MF_LEN, MI_LEN, open_box, split)
 
 Grids = namedtuple("Grids", "grid frame")
@@ -127,13 +127,14 @@ def _slots(buf, box, mf, mi):
 
 
 @njit(cache=False)
-def _slot_judgements(box, mf, mi, rays, pa, q, grids, stop, dcrit, shrank):
+def _slot_judgements(box, mf, mi, rays, pa, q, grids, stop, dcrit, shrank, tight):
     sl = SlotsLike(np.zeros((1, 4, 16), np.float32), box, mf, mi)
     for lane in range(LANES):
         s, d, sh, _ = judge_known(sl, lane, pa, grids, rays[lane], q, -1.0)
         stop[lane] = s
         dcrit[lane] = d
         shrank[lane] = sh
+        tight[lane] = tightening(sl, lane, pa) != 0
 
 
 @njit(cache=False)
@@ -144,8 +145,9 @@ def _lanes_halving(points, dirs, box, mf, mi, lray, step, levels, sub_scale, spl
 
 
 @njit(cache=False)
-def _lanes_judgement(box, mf, mi, lray, step, g0, g1, g2, criterion, param, max_depth, shrink_factor):
-    return LS.judge_lanes(box, mf, mi, lray, step, g0, g1, g2, criterion, param, max_depth, shrink_factor, False)
+def _lanes_judgement(box, mf, mi, lray, step, g0, g1, g2, criterion, param, max_depth, shrink_factor, cumulative):
+    return LS.judge_lanes(box, mf, mi, lray, step, g0, g1, g2, criterion, param, max_depth, shrink_factor, False,
+                          cumulative)
 
 
 def _patch(linear, dtype):
@@ -264,7 +266,7 @@ def test_judge_lanes_is_the_single_rays_criterion(criterion):
     pa = _patch(False, np.float32)
     rng = np.random.default_rng(70 + criterion)
     versions = [LS.judge_lanes_python] if numba_config.DISABLE_JIT else [
-        lambda *args: _lanes_judgement(*args[:-1]), LS.judge_lanes_python]
+        lambda *args: _lanes_judgement(*args[:12], args[13]), LS.judge_lanes_python]
     for version in versions:
         for case in range(60):
             buf, box, mf, mi, rays = _random_lanes(rng, pa, np.float32)
@@ -277,12 +279,16 @@ def test_judge_lanes_is_the_single_rays_criterion(criterion):
             stop = np.zeros(LANES, np.bool_)
             dcrit = np.zeros(LANES)
             shrank = np.zeros(LANES, np.bool_)
+            tight = np.zeros(LANES, np.bool_)
+            mf[:, M_MAG] = np.abs(box).max(axis=1) * (2.0 ** rng.integers(0, 8))
             _slot_judgements(box[0::2].copy(), mf[0::2].copy(), mi[0::2].copy(), rays, pa, q,
-                             Grids(grid[None, :], np.zeros((1, 3))), stop, dcrit, shrank)
+                             Grids(grid[None, :], np.zeros((1, 3))), stop, dcrit, shrank, tight)
             _, lbox, lmf, lmi, lray = _to_lanes(buf, box, mf, mi, rays)
             step = np.zeros((LS.STEP_LEN, LANES))
             bits = int(version(lbox, lmf, lmi, lray, step, grid[0], grid[1], grid[2], criterion, param, 80,
-                               pa.shrink_factor, False))
+                               pa.shrink_factor, False, pa.cumulative))
             assert [(bits >> lane) & 1 for lane in range(LANES)] == stop.astype(int).tolist(), f"case {case}: stops"
+            assert [(bits >> (LANES + lane)) & 1 for lane in range(LANES)] == tight.astype(int).tolist(), \
+                f"case {case}: tightening"
             assert step[LS.S_DCRIT].tobytes() == dcrit.tobytes(), f"case {case}: box measures"
             assert (step[LS.S_SHRANK] != 0.0).tolist() == shrank.tolist(), f"case {case}: shrank"

@@ -38,6 +38,7 @@ from .subpatch import MF_LEN, MI_LEN, M_TIN, M_TOUT, M_U0, M_V0, patch_info
 # (LANES, S) uint32: each lane's stack of working slots (far halves it pushed), top (LANES,) its
 # height. step (STEP_LEN, LANES): a halving's inputs.
 NO_RAY = np.uint64(2 ** 64 - 1)  # a lane without a ray
+KEPT = 2  # current: the half the last halving kept (1: a sub-patch popped or a ray's start)
 AloneLanes = namedtuple("AloneLanes", "points box mf mi points_s box_s mf_s mi_s dirs ray lray current stack top "
                                       "step")
 
@@ -154,7 +155,8 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
                     free[nfree] = s
                     nfree += 1
                     al.current[lane] = 1
-                if ahead(ls, lane, pa, br.hits[r]):
+                # (a half kept at the last halving passed the same test then, against the same hit)
+                if al.current[lane] == KEPT or ahead(ls, lane, pa, br.hits[r]):
                     have |= bit(lane)
                     break
                 al.current[lane] = 0
@@ -162,6 +164,7 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
             return nfree
         if mantissa:  # (the criterion's test reads the ray: one lane at a time)
             stop = ZERO
+            tight = (ONE << np.uint64(LANES)) - ONE  # (every lane asks search_steps.tightening)
             m = have
             while m != ZERO:
                 lane = np.uint64(lowest_bit(m))
@@ -172,8 +175,10 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
                 if stopped:
                     stop |= bit(lane)
         else:
-            stop = judge_lanes(al.box, al.mf, al.mi, al.lray, al.step, grid[p, 0], grid[p, 1], grid[p, 2],
-                               q.criterion, q.param, q.max_depth, pa.shrink_factor, pa.rational)
+            verdicts = judge_lanes(al.box, al.mf, al.mi, al.lray, al.step, grid[p, 0], grid[p, 1], grid[p, 2],
+                                   q.criterion, q.param, q.max_depth, pa.shrink_factor, pa.rational, pa.cumulative)
+            stop = verdicts & np.uint64(0xFF)
+            tight = verdicts >> np.uint64(LANES)
         ready = ZERO
         m = have
         while m != ZERO:
@@ -187,7 +192,7 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
                 al.current[lane] = 0
                 continue
             br.counts[r, C_EFFORT] += 2
-            if tightening(ls, lane, pa) != 0:  # (rare) on a copy in a working slot
+            if (tight >> lane) & ONE and tightening(ls, lane, pa) != 0:  # (rare) on a copy in a working slot
                 spare = free[nfree - 1]
                 to_slot(al, lane, sl, spare, pa.count)
                 tighten(sl, spare, pa, lv)
@@ -225,6 +230,6 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
                 far, near, alive_far, alive_near = order_halves(ls, a, b, alive_a, alive_b)
             if (near == b) if alive_near else (alive_far and far == b):  # the kept half is the high one
                 take |= bit(lane)
-            al.current[lane] = 1 if (alive_near or alive_far) else 0
+            al.current[lane] = KEPT if (alive_near or alive_far) else 0
         if take != ZERO:
             keep_high_lanes(al.points, al.box, al.mf, al.mi, take)

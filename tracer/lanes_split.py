@@ -26,7 +26,7 @@ from numba.extending import intrinsic
 
 from .ray import R_D, R_INV, R_O, T_SLACK
 from .search_steps import ADAPTIVE, FIXED, GRID_PREFILTER
-from .subpatch import I_DEPTH, I_LAST, I_STALLED, I_TRIM, SPLIT_CROSS, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, MF_LEN, MI_LEN
+from .subpatch import RECENTRE, REFINE, I_DEPTH, I_LAST, I_STALLED, I_TRIM, SPLIT_CROSS, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, MF_LEN, MI_LEN
 
 LANES = 8
 COLUMNS = 2 * LANES
@@ -214,7 +214,7 @@ def halve_lanes_python(points, dirs, box, mf, mi, lray, step, levels, sub_scale,
 
 
 def judge_lanes_python(box, mf, mi, lray, step, grid0, grid1, grid2, criterion, param, max_depth, shrink_factor,
-                       rational):
+                       rational, cumulative):
     """numpy version of judge_lanes."""
     grid = (grid0, grid1, grid2)
     low = slice(0, LANES)
@@ -248,7 +248,13 @@ def judge_lanes_python(box, mf, mi, lray, step, grid0, grid1, grid2, criterion, 
     stop |= ~shrank & (mi[I_STALLED, low] == 1) & ~(rational & (d > limit))
     step[S_DCRIT] = d_box
     step[S_SHRANK] = np.where(shrank, 1.0, 0.0)
-    return np.uint64(sum(1 << lane for lane in range(LANES) if stop[lane]))
+    ext = box[3, low] - box[0, low]
+    for c in (1, 2):  # search_steps.tightening
+        ext = np.where(box[3 + c, low] - box[c, low] > ext, box[3 + c, low] - box[c, low], ext)
+    tight = ((mf[M_E, low] + mf[M_E + 1, low] + mf[M_E + 2, low]) * REFINE > ext) & cumulative
+    tight |= ext * RECENTRE < mf[M_MAG, low]
+    return np.uint64(sum(1 << lane for lane in range(LANES) if stop[lane])
+                     | sum(1 << (LANES + lane) for lane in range(LANES) if tight[lane]))
 
 
 def keep_high_lanes_python(points, box, mf, mi, take):
@@ -534,16 +540,17 @@ def _make_halve(linear: bool):
 
 
 def judge_lanes(typingctx, box, mf, mi, lray, step, grid0, grid1, grid2, criterion, param, max_depth,
-                shrink_factor, rational):
+                shrink_factor, rational, cumulative):
     """search_steps.judge_known for every lane's current sub-patch (column lane) under the float,
     fixed or adaptive criterion (not mantissa, whose test is the ray's: judge_known), as it judges
     a slot: its grid box's L1 diameter (grid0..2: the leaf's grid steps) where the criteria need
     it. Writes each lane's box measure and whether the box shrank (step[S_DCRIT], step[S_SHRANK]);
-    returns bit lane where the lane's sub-patch meets the criterion (uint64)."""
+    returns bit lane where the lane's sub-patch meets the criterion, LANES + lane where
+    search_steps.tightening would tighten it (cumulative: PatchInfo.cumulative) (uint64)."""
     if not (all(_is_c(a, 2, (types.float64,)) for a in (box, mf, lray, step)) and _is_c(mi, 2, (types.int32,))):
         return None
     sig = types.uint64(box, mf, mi, lray, step, types.float64, types.float64, types.float64, types.int64,
-                       types.float64, types.int64, types.float64, types.boolean)
+                       types.float64, types.int64, types.float64, types.boolean, types.boolean)
 
     def codegen(context, builder, signature, args):
         cols = _Columns(context, builder, signature, args)
@@ -613,7 +620,17 @@ def judge_lanes(typingctx, box, mf, mi, lray, step, grid0, grid1, grid2, criteri
         builder.store(d_box, builder.gep(steps, [ir.IntType(32)(S_DCRIT)]), align=8)
         builder.store(builder.select(shrank, const(1.0), const(0.0)), builder.gep(steps, [ir.IntType(32)(S_SHRANK)]),
                       align=8)
-        return builder.zext(builder.bitcast(stop, ir.IntType(LANES)), ir.IntType(64))
+        ext = builder.fsub(cols.load(boxes, 3), cols.load(boxes, 0))
+        for c in (1, 2):  # search_steps.tightening (max of several: the first of equals stays)
+            extent = builder.fsub(cols.load(boxes, 3 + c), cols.load(boxes, c))
+            ext = builder.select(builder.fcmp_ordered('>', extent, ext), extent, ext)
+        bound = builder.fadd(builder.fadd(cols.load(meta, M_E), cols.load(meta, M_E + 1)), cols.load(meta, M_E + 2))
+        cumulative = builder.select(args[13], builder.not_(false), false)
+        tight = builder.and_(builder.fcmp_ordered('>', builder.fmul(bound, const(REFINE)), ext), cumulative)
+        tight = builder.or_(tight, builder.fcmp_ordered('<', builder.fmul(ext, const(RECENTRE)), cols.load(meta, M_MAG)))
+        stops = builder.zext(builder.bitcast(stop, ir.IntType(LANES)), ir.IntType(64))
+        tights = builder.zext(builder.bitcast(tight, ir.IntType(LANES)), ir.IntType(64))
+        return builder.or_(stops, builder.shl(tights, ir.Constant(ir.IntType(64), LANES)))
 
     return sig, codegen
 
