@@ -92,7 +92,7 @@ def test_lanes_split_refuses_other_layouts():
 from collections import namedtuple  # noqa: E402
 
 from tracer import lanes_split as LS  # noqa: E402
-from tracer.ray import R_D, R_DT, R_INV, R_O, R_REACH, R_T0, RAY_LEN  # noqa: E402
+from tracer.ray import H_TIN, R_D, R_DT, R_INV, R_O, R_REACH, R_T0, RAY_LEN  # noqa: E402
 from tracer.records import PatchInfo, Query  # noqa: E402
 from tracer.search_steps import finish_halves, halving_direction, judge_known, tightening  # noqa: E402
 from tracer.subpatch import (I_DEPTH, I_LAST, I_STALLED, I_TRIM, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN, M_TOUT, M_U0,  # noqa: E402
@@ -102,9 +102,10 @@ Grids = namedtuple("Grids", "grid frame")
 
 
 @njit(cache=False)
-def _slot_halvings(buf, box, mf, mi, rays, pa, q, dcrit, shrank, start, stop, met):
+def _slot_halvings(buf, box, mf, mi, rays, pa, q, dcrit, shrank, start, stop, met, alive):
     """Lane l's halving on slots 2 l (low half) and 2 l + 1 (high), as the single ray makes it."""
     hit = np.full(32, np.inf)
+    hit[H_TIN] = 2.5  # (the search's limit: some boxes entered after it)
     for lane in range(LANES):
         a, b = 2 * lane, 2 * lane + 1
         ray = rays[lane]
@@ -114,8 +115,8 @@ def _slot_halvings(buf, box, mf, mi, rays, pa, q, dcrit, shrank, start, stop, me
         sl = _slots(buf, box, mf, mi)
         split(sl, a, b, pa, direction, False)
         finish_halves(sl, a, b, pa, dcrit[lane], shrank[lane] != 0.0, direction)
-        met[lane] = open_box(sl, a, ray, start[lane], stop[lane], hit, 0)[1]
-        met[LANES + lane] = open_box(sl, b, ray, start[lane], stop[lane], hit, 0)[1]
+        alive[lane], met[lane] = open_box(sl, a, ray, start[lane], stop[lane], hit, 0)
+        alive[LANES + lane], met[LANES + lane] = open_box(sl, b, ray, start[lane], stop[lane], hit, 0)
 
 
 SlotsLike = namedtuple("SlotsLike", "buf box mf mi")
@@ -237,8 +238,12 @@ def test_halve_lanes_is_the_single_rays_halving(linear, dtype, split_mode):
             lmf[M_TIN, :LANES] = start
             lmf[M_TOUT, :LANES] = stop
             met = np.zeros(COLUMNS_SLOTS, np.bool_)
+            alive = np.zeros(COLUMNS_SLOTS, np.bool_)
+            lray[LS.LR_LIMIT] = 2.5
+            lray[LS.LR_REACH] = -np.inf
+            lray[LS.LR_TMIN] = 0.0
             _slot_halvings(buf, box, mf, mi, rays, pa, q, step[LS.S_DCRIT].copy(), step[LS.S_SHRANK].copy(),
-                           start, stop, met)
+                           start, stop, met, alive)
             dirs = np.zeros(LANES, np.int32)
             bits = int(version(points, dirs, lbox, lmf, lmi, lray, step, pa.m * pa.round_unit, pa.sub_scale,
                                split_mode, linear))
@@ -246,7 +251,12 @@ def test_halve_lanes_is_the_single_rays_halving(linear, dtype, split_mode):
             assert lmi[:, :LANES].tobytes() == mi[0::2].T.tobytes(), f"case {case}: low halves' places"
             assert lmi[:, LANES:].tobytes() == mi[1::2].T.tobytes(), f"case {case}: high halves' places"
             for lane in range(LANES):
+                odd = any(met[LANES * h + lane] and lmf[M_TIN, LANES * h + lane] <= 0.0 for h in range(2))
+                special = odd or (met[lane] and met[LANES + lane] and (alive[lane] or alive[LANES + lane]))
+                assert ((bits >> (4 * LANES + lane)) & 1) == special, f"case {case} lane {lane}: special"
                 for h in range(2):
+                    if not special:
+                        assert ((bits >> (2 * LANES + LANES * h + lane)) & 1) == alive[LANES * h + lane]
                     s, column = 2 * lane + h, LANES * h + lane
                     where = f"case {case} lane {lane} half {h}"
                     assert ((bits >> column) & 1) == met[LANES * h + lane], where + ": slab verdict"

@@ -20,9 +20,9 @@ from .bundle_steps import ONE, ZERO, bit, lane_limit, lowest_bit
 from .hull import hull_behind
 from .jit import njit
 from .lanes import L_HIT
-from .lanes_split import (COLUMNS, LANE_RAY, LANES, LR_DT, LR_T0, S_DCRIT, S_SHRANK, STEP_LEN, halve_lanes,
+from .lanes_split import (COLUMNS, LANE_RAY, LANES, LR_DT, LR_LIMIT, LR_REACH, LR_T0, LR_TMIN, S_DCRIT, S_SHRANK, STEP_LEN, halve_lanes,
                           halve_lanes_linear, judge_lanes, keep_high_lanes)
-from .ray import R_D, R_DT, R_INV, R_O, R_REACH, R_T0, R_TMIN, before_best
+from .ray import H_TIN, R_D, R_DT, R_INV, R_O, R_REACH, R_T0, R_TMIN, before_best
 from .records import C_EFFORT, Slots
 from .search_steps import (MANTISSA, ahead, hull_accepts, judge_known, near_and_far, order_halves, report,
                            tighten, tightening)
@@ -88,13 +88,16 @@ def from_slot(al, column, sl, s, count):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _take_ray(al, lane, lr):
+def _take_ray(al, lane, lr, hit):
     for k in range(3):
         al.lray[R_O + k, lane] = lr[R_O + k]
         al.lray[R_D + k, lane] = lr[R_D + k]
         al.lray[R_INV + k, lane] = lr[R_INV + k]
     al.lray[LR_T0, lane] = lr[R_T0]
     al.lray[LR_DT, lane] = lr[R_DT]
+    al.lray[LR_LIMIT, lane] = hit[H_TIN]
+    al.lray[LR_REACH, lane] = lr[R_REACH]
+    al.lray[LR_TMIN, lane] = lr[R_TMIN]
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -138,7 +141,7 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
                     r = np.uint64(lowest_bit(queue))
                     queue &= queue - ONE
                     al.ray[lane] = r
-                    _take_ray(al, lane, br.lrays[r])
+                    _take_ray(al, lane, br.lrays[r], br.hits[r])
                     start = br.waiting[r]
                     from_slot(al, lane, sl, start, pa.count)
                     free[nfree] = start
@@ -189,6 +192,7 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
                 lr = br.lrays[r]
                 if hull_accepts(ls, lane, pa, lv, lr, q):
                     report(br.hits[r], ls, lane, pa, lv)
+                    al.lray[LR_LIMIT, lane] = br.hits[r, H_TIN]
                 al.current[lane] = 0
                 continue
             br.counts[r, C_EFFORT] += 2
@@ -201,14 +205,24 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
         if ready == ZERO:
             continue
         if pa.cubic:
-            met = halve_lanes(al.points, al.dirs, al.box, al.mf, al.mi, al.lray, al.step, pa.m * pa.round_unit,
-                              pa.sub_scale, q.split_mode)
+            verdicts = halve_lanes(al.points, al.dirs, al.box, al.mf, al.mi, al.lray, al.step,
+                                   pa.m * pa.round_unit, pa.sub_scale, q.split_mode)
         else:
-            met = halve_lanes_linear(al.points, al.dirs, al.box, al.mf, al.mi, al.lray, al.step,
-                                     pa.m * pa.round_unit, pa.sub_scale, q.split_mode)
-        take = ZERO
-        m = ready
+            verdicts = halve_lanes_linear(al.points, al.dirs, al.box, al.mf, al.mi, al.lray, al.step,
+                                          pa.m * pa.round_unit, pa.sub_scale, q.split_mode)
+        met_bits = verdicts & np.uint64(0xFFFF)
+        low_alive = (verdicts >> np.uint64(2 * LANES)) & np.uint64(0xFF)
+        high_alive = (verdicts >> np.uint64(3 * LANES)) & np.uint64(0xFF)
+        special = (verdicts >> np.uint64(4 * LANES)) & ready
+        plain = ready & ~special  # at most one half alive: it goes on, or the lane pops
+        take = plain & high_alive & ~low_alive
+        m = plain
         while m != ZERO:
+            lane = np.uint64(lowest_bit(m))
+            m &= m - ONE
+            al.current[lane] = KEPT if ((low_alive | high_alive) >> lane) & ONE else 0
+        m = special
+        while m != ZERO:  # the single ray's verdicts, lane by lane
             lane = np.uint64(lowest_bit(m))
             m &= m - ONE
             r = al.ray[lane]
@@ -217,8 +231,8 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
             a = lane
             b = np.uint64(LANES) + lane
             direction = al.dirs[lane]
-            alive_a, met_a = _verdict(al, ls, a, pa, lr, hit, (met >> np.uint64(a)) & ONE)
-            alive_b, met_b = _verdict(al, ls, b, pa, lr, hit, (met >> np.uint64(b)) & ONE)
+            alive_a, met_a = _verdict(al, ls, a, pa, lr, hit, (met_bits >> np.uint64(a)) & ONE)
+            alive_b, met_b = _verdict(al, ls, b, pa, lr, hit, (met_bits >> np.uint64(b)) & ONE)
             if (met_a & met_b) != 0 and (alive_a | alive_b) != 0:  # the hull tests
                 far, near, alive_far, alive_near, _ = near_and_far(ls, a, b, pa, lr, direction, alive_a, alive_b, 1)
                 if alive_far and alive_near:  # the far half waits on the lane's stack, in a working slot

@@ -33,8 +33,9 @@ COLUMNS = 2 * LANES
 # Rows of the lanes' rays (LANE_RAY, LANES): origin in the patch's frame xyz, direction xyz,
 # 1 / direction xyz; and of a halving's per-lane inputs (STEP_LEN, LANES): the parent's criterion
 # diameter (the halves' M_DPAR) and whether its box shrank (1.0 or 0.0).
-LR_T0, LR_DT = 9, 10  # (and the adaptive criterion's threshold of detail at t = 0 and its growth)
-LANE_RAY = 11
+LR_T0, LR_DT = 9, 10  # (and the adaptive criterion's threshold of detail at t = 0 and its growth,
+LR_LIMIT, LR_REACH, LR_TMIN = 11, 12, 13  # the t its search goes up to (hit[H_TIN]), R_REACH, R_TMIN)
+LANE_RAY = 14
 S_DCRIT, S_SHRANK = 0, 1
 STEP_LEN = 2
 
@@ -185,7 +186,7 @@ def halve_lanes_python(points, dirs, box, mf, mi, lray, step, levels, sub_scale,
         mi[I_DEPTH, column] = mi[I_DEPTH, low] + 1
         mi[I_STALLED, column] = np.where(step[S_SHRANK] != 0.0, 0, 1)
         mi[I_LAST, column] = dirs
-    bits = 0
+    verdicts = []
     for h, column in enumerate((low, high)):  # widen, M_DPAR, open_box
         mag = np.zeros(LANES)
         for k in range(6):
@@ -207,9 +208,16 @@ def halve_lanes_python(points, dirs, box, mf, mi, lray, step, levels, sub_scale,
         t_in, t_out, meets = _slab_python(lo, hi, lray, start, stop)
         mf[M_TIN, column] = t_in
         mf[M_TOUT, column] = t_out
-        for lane in range(LANES):
-            if meets[lane]:
-                bits |= 1 << (LANES * h + lane)
+        alive = meets & (t_out >= lray[LR_REACH]) & (t_in < lray[LR_LIMIT])
+        odd = meets & (((t_in == lray[LR_LIMIT]) & (t_out >= lray[LR_REACH])) | (t_in <= lray[LR_TMIN]))
+        verdicts.append((meets, alive, odd))
+    (met_a, alive_a, odd_a), (met_b, alive_b, odd_b) = verdicts
+    special = odd_a | odd_b | (met_a & met_b & (alive_a | alive_b))
+    bits = 0
+    for lane in range(LANES):
+        for k, flag in enumerate((met_a, met_b, alive_a, alive_b, special)):
+            if flag[lane]:
+                bits |= 1 << (LANES * k + lane)
     return np.uint64(bits)
 
 
@@ -392,8 +400,12 @@ def _make_halve(linear: bool):
         dirs' direction, split_intervals, the halves' widening (sub_scale: PatchInfo.sub_scale) and
         M_DPAR (step[S_DCRIT]), their depth, stall flag (step[S_SHRANK]), direction and trim state
         (mi), and each half's slab test against its lane's ray (lray: (LANE_RAY, LANES)) within the
-        parent's interval (M_TIN, M_TOUT, then the halves'). Returns bit lane where the ray meets
-        the low half, LANES + lane where it meets the high one (uint64)."""
+        parent's interval (M_TIN, M_TOUT, then the halves'). Returns (uint64) the lanes (LANES bits
+        each, lowest first) where the ray meets the low half, the high half, where the low half
+        stays a candidate (search_steps.open_slot: it reaches R_REACH and is entered before the
+        search's limit), the high half does, and where the lane needs the single ray's own verdict
+        (an entry at the limit itself, a box holding the origin, or the hull tests: both halves met
+        and one alive)."""
         if not (_is_c(points, 3, (types.float32, types.float64)) and _is_c(dirs, 1, (types.int32,))
                 and all(_is_c(a, 2, (types.float64,)) for a in (box, mf, lray, step)) and _is_c(mi, 2, (types.int32,))):
             return None
@@ -485,7 +497,7 @@ def _make_halve(linear: bool):
                 cols.store(stalled, mis, I_STALLED, h)
                 cols.store(dirs, mis, I_LAST, h)
             unshared = builder.fcmp_ordered('!=', sub_scale_v, const(0.0))
-            bits = ir.Constant(ir.IntType(64), 0)
+            verdicts = []
             for h in range(2):  # search_steps.finish_halves' widening and M_DPAR, subpatch.open_box
                 corners = [cols.load(boxes, k, h) for k in range(6)]
                 mag = const(0.0)
@@ -529,8 +541,19 @@ def _make_halve(linear: bool):
                 cols.store(t_in, meta, M_TIN, h)
                 cols.store(t_out, meta, M_TOUT, h)
                 meets = builder.and_(builder.not_(fail), builder.fcmp_ordered('<=', t_in, t_out))
-                met = builder.zext(builder.bitcast(meets, ir.IntType(LANES)), ir.IntType(64))
-                bits = builder.or_(bits, builder.shl(met, ir.Constant(ir.IntType(64), LANES * h)))
+                limit, reach = ray_row(LR_LIMIT), ray_row(LR_REACH)
+                reaching = builder.fcmp_ordered('>=', t_out, reach)
+                alive = builder.and_(builder.and_(meets, reaching), builder.fcmp_ordered('<', t_in, limit))
+                odd = builder.and_(meets, builder.or_(builder.and_(builder.fcmp_ordered('==', t_in, limit), reaching),
+                                                      builder.fcmp_ordered('<=', t_in, ray_row(LR_TMIN))))
+                verdicts.append((meets, alive, odd))
+            (met_a, alive_a, odd_a), (met_b, alive_b, odd_b) = verdicts
+            special = builder.or_(builder.or_(odd_a, odd_b),
+                                  builder.and_(builder.and_(met_a, met_b), builder.or_(alive_a, alive_b)))
+            bits = ir.Constant(ir.IntType(64), 0)
+            for k, flag in enumerate((met_a, met_b, alive_a, alive_b, special)):
+                flag = builder.zext(builder.bitcast(flag, ir.IntType(LANES)), ir.IntType(64))
+                bits = builder.or_(bits, builder.shl(flag, ir.Constant(ir.IntType(64), LANES * k)))
             return bits
 
         return sig, codegen
