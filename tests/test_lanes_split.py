@@ -95,8 +95,8 @@ from tracer import lanes_split as LS  # noqa: E402
 from tracer.ray import H_TIN, R_D, R_DT, R_INV, R_O, R_REACH, R_T0, RAY_LEN  # noqa: E402
 from tracer.records import PatchInfo, Query  # noqa: E402
 from tracer.search_steps import finish_halves, halving_direction, judge_known, tightening  # noqa: E402
-from tracer.subpatch import (I_DEPTH, I_LAST, I_STALLED, I_TRIM, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN, M_TOUT, M_U0,  # noqa: E402
-                             M_U1, M_V0, M_V1, M_W, MF_LEN, MI_LEN, open_box, split)
+from tracer.subpatch import (I_DEPTH, I_LAST, I_STALLED, I_TRIM, M_D, M_DPAR, M_E, M_GULP, M_MAG,  # noqa: E402
+                             M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, MF_LEN, MI_LEN, open_box, split)
 
 Grids = namedtuple("Grids", "grid frame")
 
@@ -156,7 +156,8 @@ def _patch(linear, dtype):
     m = 1 if linear else 3
     cumulative = bits < 53
     return PatchInfo(0, m, m, (m + 1) ** 2, 0, False, not linear, linear, bits, cumulative,
-                     0.0 if cumulative else 2.0 ** (8 - bits), 2.0 ** -bits if cumulative else 0.0, 1.0 - 2.0 ** (4 - bits))
+                     0.0 if cumulative else 2.0 ** (8 - bits), 2.0 ** -bits if cumulative else 0.0,
+                     1.0 - 2.0 ** (4 - bits))
 
 
 def _random_lanes(rng, pa, dtype):

@@ -20,8 +20,8 @@ from .bundle_steps import ONE, ZERO, bit, lane_limit, lowest_bit
 from .hull import hull_behind
 from .jit import njit
 from .lanes import L_HIT
-from .lanes_split import (COLUMNS, LANE_RAY, LANES, LR_DT, LR_LIMIT, LR_REACH, LR_T0, LR_TMIN, S_DCRIT, S_SHRANK, STEP_LEN, halve_lanes,
-                          halve_lanes_linear, judge_lanes, keep_high_lanes)
+from .lanes_split import (COLUMNS, LANE_RAY, LANES, LR_DT, LR_LIMIT, LR_REACH, LR_T0, LR_TMIN, S_DCRIT, S_SHRANK,
+                          STEP_LEN, halve_lanes, halve_lanes_linear, judge_lanes, keep_high_lanes)
 from .ray import H_TIN, R_D, R_DT, R_INV, R_O, R_REACH, R_T0, R_TMIN, before_best
 from .records import C_EFFORT, Slots
 from .search_steps import (MANTISSA, ahead, hull_accepts, judge_known, near_and_far, order_halves, report,

@@ -26,7 +26,8 @@ from numba.extending import intrinsic
 
 from .ray import R_D, R_INV, R_O, T_SLACK
 from .search_steps import ADAPTIVE, FIXED, GRID_PREFILTER
-from .subpatch import RECENTRE, REFINE, I_DEPTH, I_LAST, I_STALLED, I_TRIM, SPLIT_CROSS, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN, M_TOUT, M_U0, M_U1, M_V0, M_V1, M_W, MF_LEN, MI_LEN
+from .subpatch import (I_DEPTH, I_LAST, I_STALLED, I_TRIM, M_D, M_DPAR, M_E, M_GULP, M_MAG, M_OX, M_TIN, M_TOUT, M_U0,
+                       M_U1, M_V0, M_V1, M_W, MF_LEN, MI_LEN, RECENTRE, REFINE, SPLIT_CROSS)
 
 LANES = 8
 COLUMNS = 2 * LANES
@@ -396,7 +397,8 @@ def _make_halve(linear: bool):
     def halve_lanes(typingctx, points, dirs, box, mf, mi, lray, step, levels, sub_scale, split_mode):
         """A halving of every lane's bicubic, its column of the lane slots (points, box, mf) into the
         low half (in place) and the high half (column LANES + lane), as the single ray's steps make
-        it: search_steps.halving_direction (into dirs; split_mode: options.SPLIT_CODE's), subpatch.split_bounds (levels: the split's rounding per unit of magnitude), the split in
+        it: search_steps.halving_direction (into dirs; split_mode: options.SPLIT_CODE's),
+        subpatch.split_bounds (levels: the split's rounding per unit of magnitude), the split in
         dirs' direction, split_intervals, the halves' widening (sub_scale: PatchInfo.sub_scale) and
         M_DPAR (step[S_DCRIT]), their depth, stall flag (step[S_SHRANK]), direction and trim state
         (mi), and each half's slab test against its lane's ray (lray: (LANE_RAY, LANES)) within the
@@ -418,7 +420,8 @@ def _make_halve(linear: bool):
             vd = ir.VectorType(double, LANES)
             vi = ir.VectorType(ir.IntType(32), LANES)
             pts, boxes, meta = cols.base(0, elem), cols.base(2, double), cols.base(3, double)
-            rays = builder.bitcast(context.make_array(signature.args[5])(context, builder, args[5]).data, vd.as_pointer())
+            rays = builder.bitcast(context.make_array(signature.args[5])(context, builder, args[5]).data,
+                                   vd.as_pointer())
             steps = builder.bitcast(context.make_array(signature.args[6])(context, builder, args[6]).data,
                                     vd.as_pointer())
             vmin, vmax, fabs = _ops(builder, vd)
@@ -454,8 +457,10 @@ def _make_halve(linear: bool):
                     cx = builder.fsub(builder.fmul(ey, d[2]), builder.fmul(ez, d[1]))
                     cy = builder.fsub(builder.fmul(ez, d[0]), builder.fmul(ex, d[2]))
                     cz = builder.fsub(builder.fmul(ex, d[1]), builder.fmul(ey, d[0]))
-                    ex, ey, ez = (builder.select(cross, crossed, plain) for crossed, plain in ((cx, ex), (cy, ey), (cz, ez)))
-                    length = builder.fadd(builder.fadd(builder.fmul(ex, ex), builder.fmul(ey, ey)), builder.fmul(ez, ez))
+                    ex, ey, ez = (builder.select(cross, crossed, plain)
+                                  for crossed, plain in ((cx, ex), (cy, ey), (cz, ez)))
+                    length = builder.fadd(builder.fadd(builder.fmul(ex, ex), builder.fmul(ey, ey)),
+                                          builder.fmul(ez, ez))
                     longest = vmax(longest, length)
                 lengths.append(longest)
             i32 = ir.IntType(32)
@@ -527,7 +532,8 @@ def _make_halve(linear: bool):
                     lo = builder.fsub(builder.fadd(corners[c], offset), origin)
                     hi = builder.fsub(builder.fadd(corners[3 + c], offset), origin)
                     flat = builder.fcmp_ordered('==', ray_row(R_D + c), const(0.0))
-                    outside = builder.or_(builder.fcmp_ordered('>', lo, const(0.0)), builder.fcmp_ordered('<', hi, const(0.0)))
+                    outside = builder.or_(builder.fcmp_ordered('>', lo, const(0.0)),
+                                          builder.fcmp_ordered('<', hi, const(0.0)))
                     fail = builder.or_(fail, builder.and_(flat, outside))
                     inv = ray_row(R_INV + c)
                     a = builder.fmul(lo, inv)
@@ -650,7 +656,8 @@ def judge_lanes(typingctx, box, mf, mi, lray, step, grid0, grid1, grid2, criteri
         bound = builder.fadd(builder.fadd(cols.load(meta, M_E), cols.load(meta, M_E + 1)), cols.load(meta, M_E + 2))
         cumulative = builder.select(args[13], builder.not_(false), false)
         tight = builder.and_(builder.fcmp_ordered('>', builder.fmul(bound, const(REFINE)), ext), cumulative)
-        tight = builder.or_(tight, builder.fcmp_ordered('<', builder.fmul(ext, const(RECENTRE)), cols.load(meta, M_MAG)))
+        tight = builder.or_(tight, builder.fcmp_ordered('<', builder.fmul(ext, const(RECENTRE)),
+                                                        cols.load(meta, M_MAG)))
         stops = builder.zext(builder.bitcast(stop, ir.IntType(LANES)), ir.IntType(64))
         tights = builder.zext(builder.bitcast(tight, ir.IntType(LANES)), ir.IntType(64))
         return builder.or_(stops, builder.shl(tights, ir.Constant(ir.IntType(64), LANES)))
