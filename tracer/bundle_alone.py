@@ -1,4 +1,5 @@
-"""A bundle's rays left alone, eight at a time (bundle._rays_alone, for integral bicubics).
+"""A bundle's rays left alone, eight at a time (bundle._rays_alone, for integral bicubics and
+bilinears).
 
 Each ray left alone in a sub-patch goes on with the single ray's steps (bundle._solo_search) on
 its own stack: below the levels the bundle shares, where a float ray makes most of its halvings,
@@ -7,8 +8,8 @@ lane: a lane's current sub-patch is a column of the lane slots (AloneLanes), the
 eight is one pass of vector code (lanes_split), and the other steps are the single ray's own
 functions, run lane by lane on the lane slots seen as slots (lane_slots: column j is slot j; 0..7
 the lanes' current sub-patches, 8..15 their high halves); tightening and a pushed half work on a
-copy in a working slot. Each lane makes its ray's steps in _solo_search's order, on its own stack (the far
-half on it, the near one on at once), so every box, hit and counter is the same.
+copy in a working slot. Each lane makes its ray's steps in _solo_search's order, on its own stack
+(the far half on it, the near one on at once), so every box, hit and counter is the same.
 """
 from __future__ import annotations
 
@@ -33,10 +34,10 @@ from .subpatch import MF_LEN, MI_LEN, M_TIN, M_TOUT, M_U0, M_V0, patch_info
 # LANES + j its high half after a halving), and the same seen as slots (points_s (COLUMNS, 3, 16),
 # box_s (COLUMNS, 6), ...: slot j is column j), made in numpy (numba's transpose with axes needs its
 # runtime). dirs (LANES,) int32: each lane's halving direction. ray (LANES,) uint64: the bundle ray
-# in each lane (NO_RAY: none), lray (LANE_RAY, LANES) its origin, direction and inverse direction in the
-# patch's frame; current (LANES,) int64: 1 where the lane holds a sub-patch to go on with. stack
-# (LANES, S) uint32: each lane's stack of working slots (far halves it pushed), top (LANES,) its
-# height. step (STEP_LEN, LANES): a halving's inputs.
+# in each lane (NO_RAY: none), lray (LANE_RAY, LANES) what the vector code reads of it
+# (lanes_split.LR_*); current (LANES,) int64: where the lane holds a sub-patch to go on with (1,
+# or KEPT), 0 where it pops. stack (LANES, S) uint32: each lane's stack of working slots (far
+# halves it pushed), top (LANES,) its height. step (STEP_LEN, LANES): a halving's inputs.
 NO_RAY = np.uint64(2 ** 64 - 1)  # a lane without a ray
 KEPT = 2  # current: the half the last halving kept (1: a sub-patch popped or a ray's start)
 AloneLanes = namedtuple("AloneLanes", "points box mf mi points_s box_s mf_s mi_s dirs ray lray current stack top "

@@ -1,17 +1,23 @@
-"""Eight sub-patches halved at once, one in each lane (LLVM IR through numba intrinsics): the rays
-a bundle leaves alone go on eight at a time (bundle_alone.py), each with its own bicubic, halved in
-its own direction.
+"""Eight sub-patches halved and judged at once, one in each lane (LLVM IR through numba
+intrinsics): the rays a bundle leaves alone go on eight at a time (bundle_alone.py), each with its
+own integral bicubic or bilinear, halved in its own direction.
 
 A lane's sub-patch lives in a column of the lane slots: points (3, 16, COLUMNS) in the slots'
 dtype, point k = i + 4 j of coordinate c of lane j's sub-patch at [c, k, j] (a slot's buf[s, c, k],
-records.Slots), box (6, COLUMNS) and mf (MF_LEN, COLUMNS) float64 (a slot's box and mf rows, in
-columns); column LANES + j holds lane j's high half after a halving. Each lane gets exactly what
-the single ray's steps give a slot (subpatch.split_bounds, simd.split_u_cubic / split_v_cubic,
-subpatch.split_intervals, search_steps.finish_halves' widening, subpatch.open_box's slab test):
-the same operations in the same order, lane by lane; the control boxes are reduced in the scalar
-split's order (its four vectors, then lanes 0 with 2 and 1 with 3, then the two), so a bound that
-is a zero has the sign the slot's would have. Both directions are formed where lanes need them and
-each lane keeps its own (dirs: 0 u, 1 v). With NUMBA_DISABLE_JIT=1 the same names are numpy
+records.Slots), box (6, COLUMNS), mf (MF_LEN, COLUMNS) float64 and mi (MI_LEN, COLUMNS) int32 (a
+slot's rows, in columns); column LANES + j holds lane j's high half after a halving.
+- halve_lanes, halve_lanes_linear: search_steps.halving_direction, subpatch.split_bounds, the split
+  (simd.split_u_cubic / split_v_cubic, bezier._split_linear), subpatch.split_intervals,
+  search_steps.finish_halves and subpatch.open_box's slab test, with open_slot's verdicts;
+- judge_lanes: search_steps.judge_known (not the mantissa criterion) and tightening's test;
+- keep_high_lanes: the lanes that keep their high half move it into their own column.
+Each lane gets exactly what the single ray's steps give a slot: the same operations in the same
+order, lane by lane (no fused or reordered arithmetic). A lane halving along v has its points
+transposed on the way in and out, so that one pass along u serves every lane: its lines are then
+the v pass's, point for point and in the same order, and the control boxes are reduced in the
+scalar split's order (its four vectors, then lanes 0 with 2 and 1 with 3, then the two), so a bound
+that is a zero has the sign the slot's would have. tests/test_lanes_split.py compares them with
+the single ray's steps on slots, byte for byte. With NUMBA_DISABLE_JIT=1 the same names are numpy
 versions doing the same operations in the same order.
 """
 from __future__ import annotations
@@ -31,11 +37,12 @@ from .subpatch import (I_DEPTH, I_LAST, I_STALLED, I_TRIM, M_D, M_DPAR, M_E, M_G
 
 LANES = 8
 COLUMNS = 2 * LANES
-# Rows of the lanes' rays (LANE_RAY, LANES): origin in the patch's frame xyz, direction xyz,
-# 1 / direction xyz; and of a halving's per-lane inputs (STEP_LEN, LANES): the parent's criterion
-# diameter (the halves' M_DPAR) and whether its box shrank (1.0 or 0.0).
-LR_T0, LR_DT = 9, 10  # (and the adaptive criterion's threshold of detail at t = 0 and its growth,
-LR_LIMIT, LR_REACH, LR_TMIN = 11, 12, 13  # the t its search goes up to (hit[H_TIN]), R_REACH, R_TMIN)
+# Rows of the lanes' rays (LANE_RAY, LANES): origin in the patch's frame xyz, direction xyz and
+# 1 / direction xyz (rows ray.R_O, R_D, R_INV), then the adaptive criterion's threshold of detail
+# at t = 0 and its growth, the t the ray's search goes up to (its hit's H_TIN), its R_REACH and
+# R_TMIN; and of a halving's per-lane inputs (STEP_LEN, LANES): the parent's criterion diameter
+# (the halves' M_DPAR) and whether its box shrank (1.0 or 0.0).
+LR_T0, LR_DT, LR_LIMIT, LR_REACH, LR_TMIN = 9, 10, 11, 12, 13
 LANE_RAY = 14
 S_DCRIT, S_SHRANK = 0, 1
 STEP_LEN = 2
