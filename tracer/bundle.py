@@ -322,8 +322,10 @@ def make_bundle_search(variant, alone: bool = True, sided: bool = True):
     def searcher(**kinds):
         alone_kernel = None
         if alone:
-            alone_kernel = kernel(specialise(_rays_alone, solo=solo(kinds["HAS_GENERAL"]), **kinds, **flags))
-            if (kinds["HAS_CUBIC"] or kinds["HAS_LINEAR"]) and not kinds["WIDE"] and not variant.trims:  # 8 at once
+            lanes = (kinds["HAS_CUBIC"] or kinds["HAS_LINEAR"]) and not kinds["WIDE"] and not variant.trims
+            if not (lanes and not kinds["HAS_GENERAL"]):  # (only lanes: the one-ray kernel is not compiled)
+                alone_kernel = kernel(specialise(_rays_alone, solo=solo(kinds["HAS_GENERAL"]), **kinds, **flags))
+            if lanes:  # eight at a time
                 alone_kernel = kernel(specialise(_rays_alone_lanes, rays_alone=alone_kernel, **kinds, **flags))
         return kernel(specialise(_bundle_search, rays_alone=alone_kernel, **kinds, **flags))
     narrow = None

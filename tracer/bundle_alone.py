@@ -118,7 +118,7 @@ def _rays_alone_lanes(p, lv, trims, q, sl, br, waiting, base, nfree):
     """bundle._rays_alone for a bicubic's rays eight at a time (see the module's doc); other
     patches' rays one after another (rays_alone)."""
     pa = patch_info(lv, p, q.bits, False, HAS_CUBIC, HAS_LINEAR)  # noqa: F821
-    if not (pa.cubic or pa.linear):
+    if HAS_GENERAL and not (pa.cubic or pa.linear):  # noqa: F821 (without it, rays_alone is None)
         return rays_alone(p, lv, trims, q, sl, br, waiting, base, nfree)  # noqa: F821
     al = br.alone
     ls = lane_slots(al, sl)
