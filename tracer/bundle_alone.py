@@ -61,31 +61,29 @@ def lane_slots(al, sl):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def to_slot(al, column, sl, s, count):
-    """Column `column` of the lane slots into working slot s (count: its control points)."""
+def _copy_sub_patch(buf, box, mf, mi, s, to_buf, to_box, to_mf, to_mi, d, count):
+    """Slot s of one set of slot arrays into slot d of another (count: its control points)."""
     for c in range(3):
         for k in range(count):
-            sl.buf[s, c, k] = al.points[c, k, column]
+            to_buf[d, c, k] = buf[s, c, k]
     for k in range(6):
-        sl.box[s, k] = al.box[k, column]
+        to_box[d, k] = box[s, k]
     for k in range(MF_LEN):
-        sl.mf[s, k] = al.mf[k, column]
+        to_mf[d, k] = mf[s, k]
     for k in range(MI_LEN):
-        sl.mi[s, k] = al.mi[k, column]
+        to_mi[d, k] = mi[s, k]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def to_slot(al, column, sl, s, count):
+    """Column `column` of the lane slots into working slot s (count: its control points)."""
+    _copy_sub_patch(al.points_s, al.box_s, al.mf_s, al.mi_s, column, sl.buf, sl.box, sl.mf, sl.mi, s, count)
 
 
 @njit(cache=True, nogil=True, inline='always')
 def from_slot(al, column, sl, s, count):
     """Working slot s into column `column` of the lane slots (count: its control points)."""
-    for c in range(3):
-        for k in range(count):
-            al.points[c, k, column] = sl.buf[s, c, k]
-    for k in range(6):
-        al.box[k, column] = sl.box[s, k]
-    for k in range(MF_LEN):
-        al.mf[k, column] = sl.mf[s, k]
-    for k in range(MI_LEN):
-        al.mi[k, column] = sl.mi[s, k]
+    _copy_sub_patch(sl.buf, sl.box, sl.mf, sl.mi, s, al.points_s, al.box_s, al.mf_s, al.mi_s, column, count)
 
 
 @njit(cache=True, nogil=True, inline='always')

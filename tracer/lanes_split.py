@@ -307,6 +307,20 @@ class _Columns:
     def store(self, value, ptr, row, high=0):
         self.builder.store(value, self.at(ptr, row, high), align=8)
 
+    def splat(self, value, elem=ir.DoubleType()):
+        """A scalar in every lane."""
+        vec = ir.VectorType(elem, LANES)
+        one = self.builder.insert_element(ir.Constant(vec, ir.Undefined), value, ir.IntType(32)(0))
+        return self.builder.shuffle_vector(one, ir.Constant(vec, ir.Undefined),
+                                           ir.Constant(ir.VectorType(ir.IntType(32), LANES), [0] * LANES))
+
+    def const(self, value):
+        return ir.Constant(ir.VectorType(ir.DoubleType(), LANES), [ir.Constant(ir.DoubleType(), value)] * LANES)
+
+    def row(self, ptr, k):
+        """Row k of a (rows, LANES) array (the lanes' rays, a halving's inputs)."""
+        return self.builder.load(self.builder.gep(ptr, [ir.IntType(32)(k)]), align=8)
+
 
 def _ops(builder, vec):
     def vmin(a, b):
@@ -427,25 +441,15 @@ def _make_halve(linear: bool):
             vd = ir.VectorType(double, LANES)
             vi = ir.VectorType(ir.IntType(32), LANES)
             pts, boxes, meta = cols.base(0, elem), cols.base(2, double), cols.base(3, double)
-            rays = builder.bitcast(context.make_array(signature.args[5])(context, builder, args[5]).data,
-                                   vd.as_pointer())
-            steps = builder.bitcast(context.make_array(signature.args[6])(context, builder, args[6]).data,
-                                    vd.as_pointer())
+            rays, steps = cols.base(5, double), cols.base(6, double)
             vmin, vmax, fabs = _ops(builder, vd)
-
-            def splat(value):
-                return builder.shuffle_vector(builder.insert_element(ir.Constant(vd, ir.Undefined), value,
-                                                                     ir.IntType(32)(0)),
-                                              ir.Constant(vd, ir.Undefined), ir.Constant(vi, [0] * LANES))
-
-            def const(value):
-                return ir.Constant(vd, [ir.Constant(double, value)] * LANES)
+            splat, const = cols.splat, cols.const
 
             def ray_row(k):
-                return builder.load(builder.gep(rays, [ir.IntType(32)(k)]), align=8)
+                return cols.row(rays, k)
 
             def step_row(k):
-                return builder.load(builder.gep(steps, [ir.IntType(32)(k)]), align=8)
+                return cols.row(steps, k)
 
             levels_v, sub_scale_v = splat(args[7]), splat(args[8])
             # search_steps.halving_direction: split_direction's edge lengths (corners 0, 3, 12, 15 in
@@ -596,17 +600,7 @@ def judge_lanes(typingctx, box, mf, mi, lray, step, grid0, grid1, grid2, criteri
         boxes, meta, mis, rays, steps = (cols.base(0, double), cols.base(1, double), cols.base(2, ir.IntType(32)),
                                          cols.base(3, double), cols.base(4, double))
         vmin, vmax, _ = _ops(builder, vd)
-
-        def splat(value):
-            return builder.shuffle_vector(builder.insert_element(ir.Constant(vd, ir.Undefined), value,
-                                                                 ir.IntType(32)(0)),
-                                          ir.Constant(vd, ir.Undefined), ir.Constant(vi, [0] * LANES))
-
-        def const(value):
-            return ir.Constant(vd, [ir.Constant(double, value)] * LANES)
-
-        def row(ptr, k):  # (lray and step rows are LANES long: one vector a row)
-            return builder.load(builder.gep(ptr, [ir.IntType(32)(k)]), align=8)
+        splat, const, row = cols.splat, cols.const, cols.row
 
         def rounded(name, value):
             fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vd, [vd]), f'llvm.{name}.v{LANES}f64')
@@ -636,9 +630,7 @@ def judge_lanes(typingctx, box, mf, mi, lray, step, grid0, grid1, grid2, criteri
         false = ir.Constant(ir.VectorType(ir.IntType(1), LANES), [0] * LANES)
         depth = cols.load(mis, I_DEPTH)
         max_depth = builder.trunc(args[10], ir.IntType(32))
-        max_depth_v = builder.shuffle_vector(builder.insert_element(ir.Constant(vi, ir.Undefined), max_depth,
-                                                                    ir.IntType(32)(0)),
-                                             ir.Constant(vi, ir.Undefined), ir.Constant(vi, [0] * LANES))
+        max_depth_v = cols.splat(max_depth, ir.IntType(32))
         stop = builder.icmp_signed('>=', depth, max_depth_v)
         stop = builder.or_(stop, builder.and_(builder.fcmp_ordered('<=', d_crit, param),
                                               builder.select(is_fixed, builder.not_(false), false)))
